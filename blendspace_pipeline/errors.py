@@ -1,0 +1,61 @@
+"""Errors that map to exit codes.
+
+Every error a user can cause is an `InputError` (exit 2) carrying *where* (a path and, when known,
+a line and column), *what* went wrong and a *hint* on how to fix it. The CLI prints it as
+`path:line:col: message` followed by an indented `hint:` line and never shows a traceback.
+Anything else that escapes is an internal error (exit 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+EXIT_OK = 0
+EXIT_DIAGNOSTICS = 1
+EXIT_INPUT = 2
+EXIT_INTERNAL = 3
+
+
+@dataclass
+class InputError(Exception):
+    """Bad input from the user: a manifest, a clip file or a command-line argument."""
+
+    message: str
+    path: Path | str | None = None
+    line: int | None = None
+    column: int | None = None
+    hint: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__init__(self.message)
+
+    def location(self) -> str:
+        if self.path is None:
+            return ""
+        where = str(self.path)
+        if self.line is not None:
+            where += f":{self.line}"
+            if self.column is not None:
+                where += f":{self.column}"
+        return where
+
+    def render(self) -> str:
+        """`path:line:col: message` and, when there is one, an indented hint."""
+        where = self.location()
+        text = f"{where}: {self.message}" if where else self.message
+        if self.hint:
+            text += "\n    hint: " + self.hint.replace("\n", "\n          ")
+        return text
+
+
+class ManifestError(InputError):
+    """The manifest cannot be read or does not validate."""
+
+
+class ClipReadError(InputError):
+    """A clip file cannot be read: unsupported format, truncated, garbage, non-finite values."""
+
+
+class UsageError(InputError):
+    """The command line is wrong."""

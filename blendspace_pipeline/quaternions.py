@@ -1,0 +1,98 @@
+"""Vectorised quaternion maths on numpy arrays.
+
+Convention: quaternions are stored scalar-last, ``(x, y, z, w)``, the order glTF and scipy use,
+so readers convert once at the edge. All functions broadcast over leading axes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def multiply(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
+def conjugate(q: FloatArray) -> FloatArray:
+    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+def normalize(q: FloatArray) -> FloatArray:
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.asarray(q / np.where(norm == 0.0, 1.0, norm), dtype=np.float64)
+
+
+def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
+    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
+    u = q[..., :3]
+    w = q[..., 3:4]
+    t = 2.0 * np.cross(u, v)
+    return np.asarray(v + w * t + np.cross(u, t), dtype=np.float64)
+
+
+def from_axis_angle(axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """Quaternions rotating by ``angle`` radians about unit ``axis`` (broadcasts)."""
+    axis = np.asarray(axis, dtype=np.float64)
+    half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
+    return np.concatenate([axis * np.sin(half), np.cos(half)], axis=-1)
+
+
+_AXIS = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}
+
+
+def from_euler(angles_deg: FloatArray, order: str) -> FloatArray:
+    """Intrinsic Euler rotation as BVH defines it: ``order`` lists the axes left to right
+    (e.g. ``"ZXY"``) and the rotation is ``R = R[order[0]] * R[order[1]] * R[order[2]]``.
+
+    ``angles_deg`` has shape (..., len(order)), one column per letter of ``order``.
+    """
+    radians = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
+    result = np.broadcast_to(IDENTITY, radians.shape[:-1] + (4,)).copy()
+    for column, letter in enumerate(order):
+        result = multiply(result, from_axis_angle(_AXIS[letter.upper()], radians[..., column]))
+    return result
+
+
+def to_euler(q: FloatArray, order: str) -> FloatArray:
+    """Inverse of `from_euler` (degrees, one column per letter of ``order``).
+
+    Uses scipy's intrinsic-rotation decomposition (upper-case sequence), which matches the
+    BVH convention of `from_euler`.
+    """
+    from scipy.spatial.transform import Rotation
+
+    flat = q.reshape(-1, 4)
+    angles = Rotation.from_quat(flat).as_euler(order.upper(), degrees=True)
+    return np.asarray(angles.reshape(q.shape[:-1] + (len(order),)), dtype=np.float64)
+
+
+def slerp(a: FloatArray, b: FloatArray, t: FloatArray | float) -> FloatArray:
+    """Spherical interpolation from ``a`` to ``b`` (shortest arc), ``t`` broadcasting."""
+    t_arr = np.asarray(t, dtype=np.float64)
+    dot = np.sum(a * b, axis=-1, keepdims=True)
+    b = np.where(dot < 0.0, -b, b)
+    dot = np.abs(dot)
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))
+    sin_theta = np.sin(theta)
+    small = sin_theta < 1e-6
+    safe = np.where(small, 1.0, sin_theta)
+    t_b = t_arr[..., None] if t_arr.ndim == a.ndim - 1 and t_arr.ndim > 0 else t_arr
+    wa = np.where(small, 1.0 - t_b, np.sin((1.0 - t_b) * theta) / safe)
+    wb = np.where(small, t_b, np.sin(t_b * theta) / safe)
+    return normalize(wa * a + wb * b)

@@ -1,0 +1,67 @@
+"""Clip readers, one adapter module per format, chosen by file suffix.
+
+Each adapter module exposes ``SUFFIXES`` (lower-case, with the dot) and
+``read(path: Path) -> list[Clip]`` returning one clip per animation in the file. Adapters raise
+`ClipReadError` with a path, a line when the format has lines, and a hint.
+"""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+from types import ModuleType
+
+from blendspace_pipeline.clip import Clip, validate_clip
+from blendspace_pipeline.errors import ClipReadError
+
+# Module names, not imports: an adapter's heavy dependency (pxr) loads only when used.
+_ADAPTERS = {
+    ".bvh": "bvh",
+    ".usd": "usd",
+    ".usda": "usd",
+    ".usdc": "usd",
+    ".usdz": "usd",
+    ".gltf": "gltf",
+    ".glb": "gltf",
+    ".tres": "godot_tres",
+}
+
+_NOT_READABLE = {
+    ".fbx": "FBX cannot be read without Autodesk's proprietary FBX SDK",
+    ".ma": "Maya scenes need Maya to evaluate",
+    ".mb": "Maya scenes need Maya to evaluate",
+    ".blend": "Blender files need Blender to evaluate",
+}
+
+
+def supported_suffixes() -> list[str]:
+    return sorted(_ADAPTERS)
+
+
+def adapter_for(path: Path) -> ModuleType:
+    suffix = path.suffix.lower()
+    if suffix in _ADAPTERS:
+        return importlib.import_module(f"blendspace_pipeline.readers.{_ADAPTERS[suffix]}")
+    formats = ", ".join(supported_suffixes())
+    if suffix in _NOT_READABLE:
+        raise ClipReadError(
+            f"{_NOT_READABLE[suffix]}",
+            path=path,
+            hint=f"export the clip from your DCC as glTF/GLB, USD (UsdSkel) or BVH; readable: {formats}",
+        )
+    raise ClipReadError(
+        f"unsupported clip format {suffix or '(no suffix)'!r}",
+        path=path,
+        hint=f"readable formats: {formats}",
+    )
+
+
+def read_clips(path: Path) -> list[Clip]:
+    """All animations in ``path`` as validated clips."""
+    adapter = adapter_for(path)
+    if not path.is_file():
+        raise ClipReadError("clip file not found", path=path, hint="check the path in the manifest")
+    clips: list[Clip] = adapter.read(path)
+    if not clips:
+        raise ClipReadError("file holds no animation", path=path, hint="export at least one animation")
+    return [validate_clip(clip) for clip in clips]
