@@ -1,0 +1,56 @@
+"""Placement: measured features → positions snapped to each axis's grid.
+
+Engines store sample positions on a grid (Unreal: `GridNum` divisions per axis) and snap to the
+nearest grid point; the snapping error is recorded so the report can show it. Values outside an
+axis range are reported by the build, never silently clamped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Axis:
+    name: str  # "x" or "y"
+    feature: str
+    minimum: float
+    maximum: float
+    divisions: int
+
+    @property
+    def step(self) -> float:
+        return (self.maximum - self.minimum) / self.divisions
+
+    def snap(self, value: float) -> float:
+        """Nearest grid value; outside the range it keeps snapping on the same grid."""
+        index = np.round((value - self.minimum) / self.step)
+        snapped = float(self.minimum + index * self.step)
+        return round(snapped, 9) + 0.0  # "+ 0.0" turns -0.0 into 0.0
+
+    def contains(self, value: float) -> bool:
+        tolerance = 1e-9 * max(1.0, abs(self.maximum - self.minimum))
+        return self.minimum - tolerance <= value <= self.maximum + tolerance
+
+    def zero_on_grid(self) -> bool:
+        """Whether 0 (the main axis through idle) is a grid value inside the range."""
+        if not self.contains(0.0):
+            return False
+        return abs(self.snap(0.0)) < 1e-9
+
+
+@dataclass(frozen=True)
+class Placement:
+    measured: tuple[float, float]
+    position: tuple[float, float]
+
+    @property
+    def snapping_error(self) -> tuple[float, float]:
+        return (self.position[0] - self.measured[0], self.position[1] - self.measured[1])
+
+
+def place(features: dict[str, float], axes: tuple[Axis, Axis]) -> Placement:
+    measured = (features[axes[0].feature], features[axes[1].feature])
+    return Placement(measured=measured, position=(axes[0].snap(measured[0]), axes[1].snap(measured[1])))
