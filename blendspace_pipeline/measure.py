@@ -54,6 +54,7 @@ class Measurement:
     notes: list[str] = field(default_factory=list)
     in_place: bool = False
     units_guessed: bool = False
+    joint_names: list[str] = field(default_factory=list)
 
 
 def trim(clip: Clip, time_range: tuple[float, float] | None) -> Clip:
@@ -117,6 +118,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
         notes=notes,
         in_place=in_place,
         units_guessed=guessed,
+        joint_names=list(used.skeleton.names),
     )
 
 
@@ -138,8 +140,8 @@ def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[st
     lateral = float(np.sum(-steps[:, 0] * sin + steps[:, 1] * cos)) / duration
     ground_speed = float(np.hypot(forward, lateral))
     direction = float(np.degrees(np.arctan2(lateral, forward))) if ground_speed > 1e-9 else 0.0
-    if direction <= -180.0:
-        direction += 360.0
+    if direction <= -180.0 + 1e-9:  # the range is (-180, 180]: straight back reads 180
+        direction = min(direction + 360.0, 180.0)
     turn = float(np.degrees(heading[-1] - heading[0]))
     return {
         # A pure strafe (90 deg) stays positive despite rounding noise in the forward component.

@@ -1,0 +1,175 @@
+"""The stable surface for rule authors: everything a rule module imports comes from here.
+
+A rule is a class with a slug, a code, a default severity, a one-line summary and a docstring
+(its user documentation). `check(space)` receives a read-only `SpaceView` and yields
+`Diagnostic`s made with `self.report(...)`. Rules never change the space: a fix is data on the
+diagnostic (`fix=` and `fix_data=`) that the engine applies, and placeholders say which clip
+would cure the problem. Built-in rules (the top-level `rules/` folder) are written the same way.
+
+    from blendspace_pipeline.api import Rule, SpaceView
+
+    class NoTinyClips(Rule):
+        \"\"\"Clips shorter than half a second rarely hold a full gait cycle.\"\"\"
+        slug = "studio-short-clip"
+        code = "ST001"
+        severity = "warning"
+        summary = "clip shorter than 0.5 s"
+
+        def check(self, space: SpaceView):
+            for sample in space.samples:
+                if sample.features["duration"] < 0.5:
+                    yield self.report(f"{sample.name} lasts {sample.features['duration']:.2f} s",
+                                      clips=[sample.name], position=sample.position)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
+from blendspace_pipeline.placement import Axis
+
+__all__ = [
+    "Axis",
+    "Diagnostic",
+    "Placeholder",
+    "Rule",
+    "SampleView",
+    "Severity",
+    "SpaceView",
+]
+
+
+@dataclass(frozen=True)
+class SampleView:
+    """A placed clip as rules see it. Positions are in axis units; ``normalised`` in 0..100."""
+
+    name: str
+    source: str
+    position: tuple[float, float]
+    measured: tuple[float, float]
+    normalised: tuple[float, float]
+    features: Mapping[str, float]
+    generated: bool = False
+    fix: str | None = None
+    expect: Mapping[str, float] | None = None
+    frames: int = 0
+    fps: float = 0.0
+    meters_per_unit: float = 1.0
+    units_source: str = ""
+    up_axis: str = "y"
+    in_place: bool = False
+    units_guessed: bool = False
+    joint_names: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class SpaceView:
+    """The placed, triangulated blend space, read-only."""
+
+    name: str
+    axes: tuple[Axis, Axis]
+    samples: tuple[SampleView, ...]
+    triangles: tuple[tuple[int, int, int], ...]
+    thresholds: Mapping[str, float]
+    options: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
+
+    def sample(self, name: str) -> SampleView:
+        for sample in self.samples:
+            if sample.name == name:
+                return sample
+        raise KeyError(name)
+
+    def to_normalised(self, position: Sequence[float]) -> tuple[float, float]:
+        x_axis, y_axis = self.axes
+        return (
+            (position[0] - x_axis.minimum) / (x_axis.maximum - x_axis.minimum) * 100.0,
+            (position[1] - y_axis.minimum) / (y_axis.maximum - y_axis.minimum) * 100.0,
+        )
+
+    def to_axis_units(self, normalised: Sequence[float]) -> tuple[float, float]:
+        x_axis, y_axis = self.axes
+        return (
+            normalised[0] / 100.0 * (x_axis.maximum - x_axis.minimum) + x_axis.minimum,
+            normalised[1] / 100.0 * (y_axis.maximum - y_axis.minimum) + y_axis.minimum,
+        )
+
+    def features_at(self, position: Sequence[float]) -> dict[str, float]:
+        """The feature values a clip placed at ``position`` must have."""
+        return {self.axes[0].feature: float(position[0]), self.axes[1].feature: float(position[1])}
+
+    def edges(self) -> list[tuple[int, int]]:
+        """Every triangle edge once, as sorted sample-index pairs."""
+        found = {tuple(sorted((t[i], t[(i + 1) % 3]))) for t in self.triangles for i in range(3)}
+        return sorted((int(a), int(b)) for a, b in found)
+
+
+class Rule:
+    """Base class of every rule, built-in or studio-made."""
+
+    slug: ClassVar[str]
+    code: ClassVar[str]
+    severity: ClassVar[Severity]
+    summary: ClassVar[str]
+    fixable: ClassVar[bool] = False
+
+    def __init__(self, severity: Severity | None = None) -> None:
+        self.effective_severity: Severity = severity or self.severity
+
+    def check(self, space: SpaceView) -> Iterable[Diagnostic]:
+        raise NotImplementedError
+
+    def report(
+        self,
+        message: str,
+        *,
+        clips: Iterable[str] = (),
+        position: Sequence[float] | None = None,
+        hint: str | None = None,
+        fix: str | None = None,
+        fix_data: dict[str, object] | None = None,
+        placeholders: Iterable[Placeholder] = (),
+    ) -> Diagnostic:
+        return Diagnostic(
+            rule=self.slug,
+            code=self.code,
+            severity=self.effective_severity,
+            message=message,
+            clips=tuple(clips),
+            position=(float(position[0]), float(position[1])) if position is not None else None,
+            fix=fix,
+            hint=hint,
+            placeholders=tuple(placeholders),
+            fix_data=fix_data,
+        )
+
+    @classmethod
+    def documentation(cls) -> str:
+        return (cls.__doc__ or cls.summary).strip()
+
+
+def placeholder(
+    space: SpaceView, position: Sequence[float], priority: str, rule: str, reason: str
+) -> Placeholder:
+    """A placeholder at ``position`` (axis units) carrying the features a new clip must have."""
+    point = (float(position[0]), float(position[1]))
+    return Placeholder(
+        position=point,
+        priority="necessary" if priority == "necessary" else "suggested",
+        rule=rule,
+        reason=reason,
+        features=space.features_at(point),
+    )
+
+
+def iter_rule_classes(namespace: Mapping[str, object]) -> Iterator[type[Rule]]:
+    """Rule subclasses defined in a module namespace (what the loader collects)."""
+    for value in namespace.values():
+        if isinstance(value, type) and issubclass(value, Rule) and value is not Rule and hasattr(value, "slug"):
+            yield value
+
+
+__all__ += ["iter_rule_classes", "placeholder"]

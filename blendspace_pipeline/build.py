@@ -1,0 +1,95 @@
+"""`build`: analyse, then write every output atomically.
+
+Outputs are written into a staging folder next to the output folder and moved into place only
+when all of them succeeded, so a failed build leaves nothing behind (and a folder the build
+created is removed again).
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.pipeline import BlendSpace, Progress, analyse
+from blendspace_pipeline.to_document import to_document
+
+
+@dataclass
+class BuildResult:
+    space: BlendSpace
+    document: BlendSpaceDocument
+    out_dir: Path
+    written: list[Path]
+
+
+def output_dir(space: BlendSpace, out: Path | None) -> Path:
+    if out is not None:
+        return out
+    configured = Path(space.manifest.model.output.dir.replace("\\", "/"))
+    return configured if configured.is_absolute() else space.manifest.directory / configured
+
+
+def _write_json(doc: BlendSpaceDocument, path: Path) -> None:
+    path.write_text(doc.model_dump_json(indent=2) + "\n", encoding="utf-8")
+
+
+def _writers() -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None]]]:
+    """format -> (file suffix, writer). Heavy writers import only when used."""
+
+    def usd(doc: BlendSpaceDocument, path: Path) -> None:
+        from blendspace_pipeline.writers.usd_blendspace import write_usd_blendspace
+
+        write_usd_blendspace(doc, path)
+
+    def html(doc: BlendSpaceDocument, path: Path) -> None:
+        from blendspace_pipeline.report import write_html_report
+
+        write_html_report(doc, path)
+
+    def png(doc: BlendSpaceDocument, path: Path) -> None:
+        from blendspace_pipeline.report import write_png
+
+        write_png(doc, path)
+
+    return {
+        "json": (".blendspace.json", _write_json),
+        "usd": (".blendspace.usda", usd),
+        "html": (".report.html", html),
+        "png": (".png", png),
+    }
+
+
+def write_outputs(space: BlendSpace, out_dir: Path, formats: list[str]) -> tuple[BlendSpaceDocument, list[Path]]:
+    created = not out_dir.exists()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    document = to_document(space, out_dir)
+    staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
+    try:
+        staged: list[tuple[Path, Path]] = []
+        writers = _writers()
+        for name in formats:
+            suffix, writer = writers[name]
+            target = out_dir / f"{space.name}{suffix}"
+            writer(document, staging / target.name)
+            staged.append((staging / target.name, target))
+        for source, target in staged:
+            source.replace(target)
+        return document, [target for _, target in staged]
+    except BaseException:
+        if created:
+            shutil.rmtree(out_dir, ignore_errors=True)
+        raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def build(manifest: Path, out: Path | None = None, *, jobs: int = 1, progress: Progress | None = None) -> BuildResult:
+    space = analyse(manifest, jobs=jobs, progress=progress)
+    out_dir = output_dir(space, out)
+    formats = list(dict.fromkeys(space.manifest.model.output.formats))
+    document, written = write_outputs(space, out_dir, formats)
+    return BuildResult(space=space, document=document, out_dir=out_dir, written=written)

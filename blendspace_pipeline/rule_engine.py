@@ -1,0 +1,247 @@
+"""Loading, configuring and running rules.
+
+Rules come from four places, all through `load_rules`, in this order: the built-in package
+`blendspace_pipeline.rules` (the top-level `rules/` folder), the entry-point group
+`blendspace_pipeline.rules`, the folders in `BLENDSPACE_RULE_PATH`, and the manifest's
+`plugins:` (module names or paths). A plugin that fails to import or repeats a slug becomes a
+visible `plugin-error` diagnostic naming its source: never a silent skip.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import pkgutil
+import sys
+import traceback
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+from importlib.metadata import entry_points
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+from blendspace_pipeline.api import Rule, SampleView, SpaceView, iter_rule_classes
+from blendspace_pipeline.diagnostics import Diagnostic, Severity
+
+if TYPE_CHECKING:
+    from blendspace_pipeline.pipeline import BlendSpace
+
+ENTRY_POINT_GROUP = "blendspace_pipeline.rules"
+RULE_PATH_VARIABLE = "BLENDSPACE_RULE_PATH"
+ENGINE_CODES = {"plugin-error": "BS900", "unused-suppression": "BS901", "rule-crashed": "BS902"}
+
+
+@dataclass
+class LoadedRules:
+    rules: dict[str, type[Rule]] = field(default_factory=dict)  # slug -> class
+    origins: dict[str, str] = field(default_factory=dict)  # slug -> where it came from
+    problems: list[Diagnostic] = field(default_factory=list)
+
+    def add_module(self, module: ModuleType, origin: str) -> None:
+        for rule in iter_rule_classes(vars(module)):
+            if rule.__module__ != module.__name__:
+                continue  # imported into the module, defined elsewhere
+            self.add(rule, origin)
+
+    def add(self, rule: type[Rule], origin: str) -> None:
+        missing = [a for a in ("slug", "code", "severity", "summary") if not hasattr(rule, a)]
+        if missing or rule.severity not in ("error", "warning", "info"):
+            self.problems.append(_engine_diagnostic("plugin-error", f"rule {rule.__name__} from {origin} is incomplete "
+                                                    f"(needs slug, code, severity error|warning|info, summary)"))
+            return
+        if rule.slug in self.rules:
+            self.problems.append(_engine_diagnostic(
+                "plugin-error",
+                f"duplicate rule slug {rule.slug!r}: {origin} repeats the rule from {self.origins[rule.slug]}; "
+                "the first one is kept",
+            ))
+            return
+        self.rules[rule.slug] = rule
+        self.origins[rule.slug] = origin
+
+    def by_code(self) -> dict[str, str]:
+        return {rule.code: slug for slug, rule in self.rules.items()}
+
+
+def _engine_diagnostic(slug: str, message: str, hint: str | None = None) -> Diagnostic:
+    return Diagnostic(rule=slug, code=ENGINE_CODES[slug], severity="error" if slug != "unused-suppression"
+                      else "warning", message=message, hint=hint)
+
+
+def _import_failure(origin: str, error: BaseException) -> Diagnostic:
+    last = traceback.format_exception_only(type(error), error)[-1].strip()
+    return _engine_diagnostic("plugin-error", f"rule plugin {origin} failed to import: {last}",
+                              hint="fix the plugin or remove it from `plugins:` / BLENDSPACE_RULE_PATH")
+
+
+def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
+    module_name = f"blendspace_plugin_{abs(hash(str(path.resolve()))):x}_{path.stem}"
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:
+        loaded.problems.append(_engine_diagnostic("plugin-error", f"rule plugin {origin} is not a Python file"))
+        return
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as error:  # a broken plugin is a diagnostic, never a crash
+        sys.modules.pop(module_name, None)
+        loaded.problems.append(_import_failure(origin, error))
+        return
+    loaded.add_module(module, origin)
+
+
+def _load_module_name(name: str, loaded: LoadedRules, origin: str) -> None:
+    try:
+        module = importlib.import_module(name)
+    except Exception as error:
+        loaded.problems.append(_import_failure(origin, error))
+        return
+    loaded.add_module(module, origin)
+
+
+def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> LoadedRules:
+    loaded = LoadedRules()
+    package = importlib.import_module("blendspace_pipeline.rules")
+    for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue  # private helpers of the built-in rules
+        _load_module_name(f"blendspace_pipeline.rules.{info.name}", loaded, f"built-in rules/{info.name}.py")
+    for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda p: p.name):
+        origin = f"entry point {point.name} = {point.value}"
+        try:
+            target = point.load()
+        except Exception as error:
+            loaded.problems.append(_import_failure(origin, error))
+            continue
+        if isinstance(target, ModuleType):
+            loaded.add_module(target, origin)
+        elif isinstance(target, type) and issubclass(target, Rule):
+            loaded.add(target, origin)
+        else:
+            loaded.problems.append(_engine_diagnostic("plugin-error", f"{origin} is neither a module nor a Rule"))
+    for folder in filter(None, os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep)):
+        directory = Path(folder)
+        if not directory.is_dir():
+            loaded.problems.append(_engine_diagnostic(
+                "plugin-error", f"{RULE_PATH_VARIABLE} folder {folder} does not exist"))
+            continue
+        for path in sorted(directory.glob("*.py")):
+            _load_path(path, loaded, f"{RULE_PATH_VARIABLE} {path}")
+    for plugin in plugins:
+        candidate = Path(plugin.replace("\\", "/"))
+        if not candidate.is_absolute() and base_dir is not None:
+            candidate = base_dir / candidate
+        if plugin.endswith(".py") or candidate.is_file():
+            if not candidate.is_file():
+                loaded.problems.append(_engine_diagnostic(
+                    "plugin-error", f"plugin file {plugin} not found (looked at {candidate})",
+                    hint="paths in `plugins:` are relative to the manifest"))
+                continue
+            _load_path(candidate, loaded, f"plugin {plugin}")
+        else:
+            _load_module_name(plugin, loaded, f"plugin {plugin}")
+    return loaded
+
+
+def space_view(space: BlendSpace) -> SpaceView:
+    normalised = space.normalised_positions()
+    samples = []
+    for index, sample in enumerate(space.samples):
+        m = sample.clip.measurement
+        samples.append(SampleView(
+            name=sample.name,
+            source=str(sample.clip.source),
+            position=sample.position,
+            measured=sample.measured,
+            normalised=(float(normalised[index, 0]), float(normalised[index, 1])),
+            features=dict(m.features),
+            generated=sample.generated,
+            fix=sample.fix,
+            expect=dict(sample.clip.entry.expect) if sample.clip.entry.expect else None,
+            frames=m.frames,
+            fps=m.fps,
+            meters_per_unit=m.meters_per_unit,
+            units_source=m.units_source,
+            up_axis=m.up_axis,
+            in_place=m.in_place,
+            units_guessed=m.units_guessed,
+            joint_names=tuple(m.joint_names),
+            notes=tuple(m.notes),
+        ))
+    thresholds = space.manifest.model.thresholds.model_dump()
+    return SpaceView(
+        name=space.name,
+        axes=space.axes,
+        samples=tuple(samples),
+        triangles=tuple(space.triangles),
+        thresholds=thresholds,
+    )
+
+
+def _selected(slug: str, code: str, select: list[str], ignore: list[str]) -> bool:
+    names = {slug, code}
+    chosen = "all" in select or bool(names & set(select))
+    return chosen and not (names & set(ignore))
+
+
+def run_rules(space: BlendSpace) -> None:
+    """Run every selected rule, apply severities and suppressions, and store the results."""
+    model = space.manifest.model
+    loaded = load_rules(model.plugins, space.manifest.directory)
+    view = space_view(space)
+    by_code = loaded.by_code()
+    severity_overrides = {by_code.get(key, key): value for key, value in model.rules.severity.items()}
+    findings: list[Diagnostic] = list(loaded.problems)
+    for slug, rule_class in loaded.rules.items():
+        if not _selected(slug, rule_class.code, model.rules.select, model.rules.ignore):
+            continue
+        override = severity_overrides.get(slug)
+        if override == "off":
+            continue
+        rule = rule_class(severity=override)  # type: ignore[arg-type]
+        try:
+            findings += list(rule.check(view))
+        except Exception as error:  # one broken rule must not hide the others
+            findings.append(_engine_diagnostic(
+                "rule-crashed", f"rule {slug} ({loaded.origins[slug]}) crashed: {type(error).__name__}: {error}",
+                hint="report this to the rule's author; the other rules ran"))
+    findings = _apply_clip_ignores(space, findings)
+    space.diagnostics = sorted(space.diagnostics + findings, key=Diagnostic.sort_key)
+    space.placeholders = [p for d in space.diagnostics for p in d.placeholders]
+
+
+def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[Diagnostic]:
+    """Drop findings a clip's `ignore:` covers; report suppressions that matched nothing."""
+    kept: list[Diagnostic] = []
+    used: set[tuple[str, str]] = set()
+    entries = {s.name: s.clip for s in space.samples}
+    for finding in findings:
+        suppressed = False
+        for clip_name in finding.clips:
+            clip = entries.get(clip_name)
+            if clip is None:
+                continue
+            for ignore in clip.entry.ignore:
+                if ignore.rule in (finding.rule, finding.code):
+                    used.add((clip_name, ignore.rule))
+                    suppressed = True
+        if not suppressed:
+            kept.append(finding)
+    for name, clip in entries.items():
+        for ignore in clip.entry.ignore:
+            if (name, ignore.rule) not in used:
+                kept.append(replace(
+                    _engine_diagnostic(
+                        "unused-suppression",
+                        f"clip {name!r} ignores {ignore.rule!r} but that rule reported nothing on it",
+                        hint="remove the stale `ignore:` entry (or check the rule slug)"),
+                    clips=(name,),
+                ))
+    return kept
+
+
+def severity_of(diagnostics: Iterable[Diagnostic]) -> set[Severity]:
+    return {d.severity for d in diagnostics}

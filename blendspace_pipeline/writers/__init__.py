@@ -1,0 +1,1 @@
+"""Writers: clips (BVH, USD, glTF) and blend-space assets (JSON, USD)."""

@@ -1,0 +1,77 @@
+"""misalignment: clips meant for a main axis that sit slightly off it, or off their `expect:`."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView, placeholder
+from blendspace_pipeline.rules._geometry import main_axes
+
+# How far a measured feature may be from its `expect:` value before it is reported.
+EXPECT_TOLERANCE = {"m/s": 0.05, "deg/s": 1.5, "deg": 2.0, "s": 0.05}
+UNITS = {"speed": "m/s", "displacement_speed": "m/s", "forward_speed": "m/s", "lateral_speed": "m/s",
+         "direction": "deg", "turn_rate": "deg/s", "turn": "deg", "duration": "s"}
+
+
+class Misalignment(Rule):
+    """A clip within `thresholds.misalignment` (normalised units, paper: 3) of a main axis but
+    off it, for example a "run forward" that turns a little. Exact placement already keeps the
+    trajectory right, but the axis then lacks its key clip. Offsets smaller than half a grid step
+    snap onto the axis and are not reported. Clips whose measurement differs from their
+    `expect:` values are reported too. The necessary placeholder sits at the intended position.
+    """
+
+    slug = "misalignment"
+    code = "BS003"
+    severity = "warning"
+    summary = "clip just off a main axis, or off its expect: values"
+    fixable = True
+
+    def check(self, space: SpaceView) -> Iterator[Diagnostic]:
+        tau = space.thresholds["misalignment"]
+        lines = main_axes(space)
+        for sample in space.samples:
+            if sample.generated:
+                continue
+            for axis_index, line in enumerate(lines):
+                if line is None:
+                    continue
+                axis = space.axes[axis_index]
+                offset = abs(sample.normalised[axis_index] - line)
+                if abs(sample.position[axis_index]) < 1e-9 or offset >= tau:
+                    continue
+                intended = list(sample.position)
+                intended[axis_index] = 0.0
+                yield self.report(
+                    f"{sample.name} sits {sample.measured[axis_index]:+.3g} {UNITS.get(axis.feature, '')} "
+                    f"off the {axis.feature} = 0 axis ({offset:.2f} normalised, below {tau:g})",
+                    clips=[sample.name],
+                    position=sample.position,
+                    hint=f"if {sample.name} is meant to have {axis.feature} 0, re-author it straight "
+                    "(or enable fixes.straighten); otherwise set `expect:` to say so",
+                    fix="straighten" if axis.feature in ("turn_rate", "turn") else None,
+                    fix_data={"axis": axis.name},
+                    placeholders=[placeholder(space, intended, "necessary", self.slug,
+                                              f"straight version of {sample.name}")],
+                )
+            yield from self._expectations(space, sample)
+
+    def _expectations(self, space: SpaceView, sample: SampleView) -> Iterator[Diagnostic]:
+        if not sample.expect:
+            return
+        for feature, wanted in sorted(sample.expect.items()):
+            measured = sample.features.get(feature)
+            if measured is None:
+                continue
+            unit = UNITS.get(feature, "")
+            if abs(measured - wanted) <= EXPECT_TOLERANCE.get(unit, 0.05):
+                continue
+            intended = [wanted if axis.feature == feature else sample.position[i] for i, axis in enumerate(space.axes)]
+            yield self.report(
+                f"{sample.name} measures {feature} {measured:.3g} {unit} but expects {wanted:g}",
+                clips=[sample.name],
+                position=sample.position,
+                hint=f"re-author {sample.name} to match, or correct its `expect:` in the manifest",
+                placeholders=[placeholder(space, intended, "necessary", self.slug,
+                                          f"{sample.name} as intended ({feature} {wanted:g})")],
+            )
