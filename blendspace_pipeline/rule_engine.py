@@ -23,7 +23,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING
 
 from blendspace_pipeline.api import Rule, SampleView, SpaceView, iter_rule_classes
-from blendspace_pipeline.diagnostics import Diagnostic, Severity
+from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
 
 if TYPE_CHECKING:
     from blendspace_pipeline.pipeline import BlendSpace
@@ -210,7 +210,20 @@ def run_rules(space: BlendSpace) -> None:
                 hint="report this to the rule's author; the other rules ran"))
     findings = _apply_clip_ignores(space, findings)
     space.diagnostics = sorted(space.diagnostics + findings, key=Diagnostic.sort_key)
-    space.placeholders = [p for d in space.diagnostics for p in d.placeholders]
+    space.placeholders = _unique_placeholders(space.diagnostics)
+
+
+def _unique_placeholders(diagnostics: list[Diagnostic]) -> list[Placeholder]:
+    """One marker per position and priority: several rules may ask for the same clip."""
+    seen: set[tuple[tuple[float, float], str]] = set()
+    unique = []
+    for diagnostic in diagnostics:
+        for mark in diagnostic.placeholders:
+            key = ((round(mark.position[0], 6), round(mark.position[1], 6)), mark.priority)
+            if key not in seen:
+                seen.add(key)
+                unique.append(mark)
+    return unique
 
 
 def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[Diagnostic]:

@@ -44,8 +44,8 @@ class CrossingAxis(Rule):
         pa, pb = space.samples[a].normalised, space.samples[b].normalised
         t = (line - pa[axis_index]) / (pb[axis_index] - pa[axis_index])
         cross_norm = (pa[0] + t * (pb[0] - pa[0]), pa[1] + t * (pb[1] - pa[1]))
-        point = space.to_axis_units(cross_norm)
-        point = (0.0, point[1]) if axis_index == 0 else (point[0], 0.0)
+        along = space.to_axis_units(cross_norm)
+        point = (0.0, round(along[1], 9)) if axis_index == 0 else (round(along[0], 9), 0.0)
         axis = space.axes[axis_index]
         names = (space.samples[a].name, space.samples[b].name)
         return self.report(

@@ -1,0 +1,94 @@
+"""A small harness for rule authors: build a blend space in a few lines and run one rule on it.
+
+    from blendspace_pipeline.testing import space_from_positions, run_rule
+
+    space = space_from_positions({"idle": (0, 0), "walk": (0, 1.4), "run_left": (90, 4.0)})
+    findings = run_rule(MyRule, space)
+    assert [f.clips for f in findings] == [("run_left",)]
+
+`space_from_specs` does the same from procedural clips (`procedural.GaitSpec`), measuring them
+for real, so a rule sees exactly what a build would give it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from blendspace_pipeline.api import Rule, SampleView, SpaceView
+from blendspace_pipeline.detect import RigSettings
+from blendspace_pipeline.diagnostics import Diagnostic
+from blendspace_pipeline.placement import Axis
+from blendspace_pipeline.triangulate import triangulate
+
+DEFAULT_AXES = (Axis("x", "turn_rate", -180.0, 180.0, 100), Axis("y", "speed", -3.0, 6.0, 90))
+DEFAULT_THRESHOLDS = {"crossing_axis": 5.0, "too_close": 8.0, "acute_angle": 15.0, "misalignment": 3.0}
+
+
+def _normalised(position: Sequence[float], axes: tuple[Axis, Axis]) -> tuple[float, float]:
+    return (
+        (position[0] - axes[0].minimum) / (axes[0].maximum - axes[0].minimum) * 100.0,
+        (position[1] - axes[1].minimum) / (axes[1].maximum - axes[1].minimum) * 100.0,
+    )
+
+
+def space_from_positions(
+    positions: Mapping[str, Sequence[float]],
+    *,
+    axes: tuple[Axis, Axis] = DEFAULT_AXES,
+    thresholds: Mapping[str, float] | None = None,
+    features: Mapping[str, Mapping[str, float]] | None = None,
+    expect: Mapping[str, Mapping[str, float]] | None = None,
+    snap: bool = True,
+    triangles: Iterable[tuple[int, int, int]] | None = None,
+) -> SpaceView:
+    """A space with samples at ``positions`` (axis units), Delaunay-triangulated like a build."""
+    samples = []
+    for name, measured in positions.items():
+        measured_xy = (float(measured[0]), float(measured[1]))
+        position = (axes[0].snap(measured_xy[0]), axes[1].snap(measured_xy[1])) if snap else measured_xy
+        sample_features = {axes[0].feature: measured_xy[0], axes[1].feature: measured_xy[1], "duration": 1.0}
+        sample_features.update((features or {}).get(name, {}))
+        samples.append(SampleView(
+            name=name,
+            source=f"{name}.bvh",
+            position=position,
+            measured=measured_xy,
+            normalised=_normalised(position, axes),
+            features=sample_features,
+            expect=(expect or {}).get(name),
+            frames=31,
+            fps=30.0,
+            in_place=abs(sample_features.get("speed", 1.0)) < 0.05 and abs(sample_features.get("turn_rate", 10.0)) < 3.0,
+        ))
+    if triangles is None:
+        points = np.array([s.normalised for s in samples], dtype=np.float64).reshape(-1, 2)
+        triangles = triangulate(points).triangles
+    return SpaceView(
+        name="test",
+        axes=axes,
+        samples=tuple(samples),
+        triangles=tuple(tuple(t) for t in triangles),  # type: ignore[misc]
+        thresholds={**DEFAULT_THRESHOLDS, **(thresholds or {})},
+    )
+
+
+def space_from_specs(specs: Iterable[object], *, axes: tuple[Axis, Axis] = DEFAULT_AXES, **options: object) -> SpaceView:
+    """Like `space_from_positions`, from procedural clips measured for real."""
+    from blendspace_pipeline.measure import measure
+    from blendspace_pipeline.procedural import GaitSpec, generate
+
+    positions: dict[str, tuple[float, float]] = {}
+    features: dict[str, dict[str, float]] = {}
+    for spec in specs:
+        assert isinstance(spec, GaitSpec)
+        measured = measure(generate(spec), RigSettings()).features
+        positions[spec.name] = (measured[axes[0].feature], measured[axes[1].feature])
+        features[spec.name] = measured
+    return space_from_positions(positions, axes=axes, features=features, **options)  # type: ignore[arg-type]
+
+
+def run_rule(rule: type[Rule], space: SpaceView) -> list[Diagnostic]:
+    """Every finding of ``rule`` on ``space``, sorted like the build sorts them."""
+    return sorted(rule().check(space), key=Diagnostic.sort_key)

@@ -1,0 +1,120 @@
+"""Good and bad cases for every built-in rule, exact findings, via the rule-author harness."""
+
+from __future__ import annotations
+
+import pytest
+
+from blendspace_pipeline.procedural import GaitSpec
+from blendspace_pipeline.rules.acute_triangle import AcuteTriangle
+from blendspace_pipeline.rules.axis_zero_off_grid import AxisZeroOffGrid
+from blendspace_pipeline.rules.crossing_axis import CrossingAxis
+from blendspace_pipeline.rules.degenerate_space import DegenerateSpace, DuplicatePosition
+from blendspace_pipeline.rules.in_place_clip import InPlaceClip
+from blendspace_pipeline.rules.inconsistent_set import InconsistentFps
+from blendspace_pipeline.rules.misalignment import Misalignment
+from blendspace_pipeline.rules.outside_axis_range import OutsideAxisRange
+from blendspace_pipeline.rules.too_close import TooClose
+from blendspace_pipeline.rules.uncovered_area import UncoveredArea, covered_fraction
+from blendspace_pipeline.placement import Axis
+from blendspace_pipeline.testing import run_rule, space_from_positions, space_from_specs
+
+KEY_SET = {  # idle, turn in place +-90, forward and backward at turn 0, turning walks
+    "idle": (0, 0), "walk": (0, 1.4), "walk_left": (60, 1.4), "walk_right": (-60, 1.4),
+    "tip_left": (90, 0), "tip_right": (-90, 0), "back": (0, -1.2),
+}
+
+
+def test_crossing_axis_bad_case_exact() -> None:
+    space = space_from_specs([
+        GaitSpec("idle", duration=1.0),
+        GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
+        GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
+    ])
+    findings = run_rule(CrossingAxis, space)
+    crossings = [f for f in findings if f.clips]
+    assert [f.clips for f in crossings] == [("walk_left", "walk_right")]
+    assert crossings[0].position == pytest.approx((0.0, 1.4))
+    assert crossings[0].fix == "axis-clip"
+    assert crossings[0].placeholders[0].priority == "necessary"
+    keys = sorted(p.position for f in findings if not f.clips for p in f.placeholders)
+    assert keys == [(-90.0, 0.0), (0.0, 1.4), (90.0, 0.0)]
+
+
+def test_crossing_axis_good_case_is_silent() -> None:
+    assert run_rule(CrossingAxis, space_from_positions(KEY_SET)) == []
+
+
+def test_crossing_axis_ignores_edges_near_the_axis() -> None:
+    # Both ends 3 normalised units from x = 0 (10.8 deg/s): within the 5-unit threshold.
+    space = space_from_positions({"idle": (0, 0), "a": (10.8, 1.4), "b": (-10.8, 1.4)})
+    assert run_rule(CrossingAxis, space) == []
+    wide = space_from_positions({"idle": (0, 0), "a": (10.8, 1.4), "b": (-10.8, 1.4)}, thresholds={"crossing_axis": 2})
+    assert len([f for f in run_rule(CrossingAxis, wide) if f.clips]) == 1
+
+
+def test_acute_triangle() -> None:
+    sliver = space_from_positions({"a": (-90, 0), "b": (90, 0), "c": (0, 0.5)})
+    findings = run_rule(AcuteTriangle, sliver)
+    assert len(findings) == 1
+    assert set(findings[0].clips) == {"a", "b", "c"}
+    assert "angle" in findings[0].message and findings[0].placeholders[0].priority == "suggested"
+    assert run_rule(AcuteTriangle, space_from_positions({"a": (-90, 0), "b": (90, 0), "c": (0, 6)})) == []
+
+
+def test_misalignment_near_axis_and_expect() -> None:
+    space = space_from_positions(
+        {"idle": (0, 0), "run": (5.0, 4.0), "walk_left": (60, 1.4)},
+        expect={"walk_left": {"turn_rate": 45.0}},
+    )
+    findings = run_rule(Misalignment, space)
+    assert [f.clips for f in findings] == [("run",), ("walk_left",)]
+    assert findings[0].placeholders[0].position == (0.0, 4.0)
+    assert "expects 45" in findings[1].message
+    assert findings[1].placeholders[0].position == (45.0, 1.4)
+    # Exactly on the axis, or far from it: silent.
+    assert run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (0, 4), "wide": (60, 4)})) == []
+
+
+def test_misalignment_below_half_a_grid_step_is_on_axis() -> None:
+    # 1 deg/s snaps to 0 on a 3.6 deg/s grid: it is on the axis for the engine.
+    assert run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (1.0, 4.0), "x": (90, 2)})) == []
+
+
+def test_too_close_clusters() -> None:
+    space = space_from_positions({"a": (0, 1.4), "b": (7.2, 1.5), "c": (14.4, 1.6), "far": (90, 4), "idle": (0, 0)})
+    findings = run_rule(TooClose, space)
+    assert len(findings) == 1
+    assert set(findings[0].clips) == {"a", "b", "c"}  # chained: a-b and b-c are each closer than 8
+    assert findings[0].fix_data is not None and findings[0].fix_data["keep"] == "b"
+    assert run_rule(TooClose, space_from_positions(KEY_SET)) == []
+
+
+def test_uncovered_area_reports_percentage() -> None:
+    full = {"a": (-180, -3), "b": (180, -3), "c": (180, 6), "d": (-180, 6)}
+    assert run_rule(UncoveredArea, space_from_positions(full)) == []
+    half = {"a": (-180, -3), "b": (180, -3), "c": (180, 6)}
+    findings = run_rule(UncoveredArea, space_from_positions(half))
+    assert "50.0%" in findings[0].message
+    assert [p.position for p in findings[0].placeholders] == [(-180.0, 6.0), (0.0, 6.0), (-180.0, 1.5)]
+    assert covered_fraction([(0, 0), (100, 0), (100, 100)]) == pytest.approx(0.5)
+
+
+def test_clip_level_rules() -> None:
+    space = space_from_positions({"idle": (0, 0), "fast": (0, 7.5), "walk": (30, 1.4)})
+    assert [f.clips for f in run_rule(InPlaceClip, space)] == [("idle",)]
+    out = run_rule(OutsideAxisRange, space)
+    assert [f.clips for f in out] == [("fast",)] and out[0].severity == "error"
+    assert run_rule(InconsistentFps, space) == []
+
+
+def test_degenerate_and_duplicates() -> None:
+    line = space_from_positions({"a": (0, 0), "b": (0, 1), "c": (0, 2)})
+    assert len(run_rule(DegenerateSpace, line)) == 1
+    dup = space_from_positions({"a": (0, 1.4), "b": (0.5, 1.41), "c": (90, 0), "d": (-90, 0)})
+    assert [f.clips for f in run_rule(DuplicatePosition, dup)] == [("a", "b")]
+
+
+def test_axis_zero_off_grid() -> None:
+    odd = (Axis("x", "turn_rate", -180, 180, 100), Axis("y", "speed", -3, 6, 10))
+    findings = run_rule(AxisZeroOffGrid, space_from_positions({"a": (0, 0)}, axes=odd))
+    assert len(findings) == 1 and "axis y" in findings[0].message
