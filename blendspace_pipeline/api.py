@@ -168,7 +168,12 @@ def placeholder(
 def iter_rule_classes(namespace: Mapping[str, object]) -> Iterator[type[Rule]]:
     """Rule subclasses defined in a module namespace (what the loader collects)."""
     for value in namespace.values():
-        if isinstance(value, type) and issubclass(value, Rule) and value is not Rule and hasattr(value, "slug"):
+        if (
+            isinstance(value, type)
+            and issubclass(value, Rule)
+            and value is not Rule
+            and hasattr(value, "slug")
+        ):
             yield value
 
 

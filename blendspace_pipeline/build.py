@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,7 +63,9 @@ def _writers() -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None
     }
 
 
-def write_outputs(space: BlendSpace, out_dir: Path, formats: list[str]) -> tuple[BlendSpaceDocument, list[Path]]:
+def write_outputs(
+    space: BlendSpace, out_dir: Path, formats: Sequence[str]
+) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
     document = to_document(space, out_dir)
@@ -87,7 +89,9 @@ def write_outputs(space: BlendSpace, out_dir: Path, formats: list[str]) -> tuple
         shutil.rmtree(staging, ignore_errors=True)
 
 
-def build(manifest: Path, out: Path | None = None, *, jobs: int = 1, progress: Progress | None = None) -> BuildResult:
+def build(
+    manifest: Path, out: Path | None = None, *, jobs: int = 1, progress: Progress | None = None
+) -> BuildResult:
     space = analyse(manifest, jobs=jobs, progress=progress)
     out_dir = output_dir(space, out)
     formats = list(dict.fromkeys(space.manifest.model.output.formats))

@@ -47,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"blendspace-pipeline {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name, module in _available_commands().items():
-        command = sub.add_parser(name, help=getattr(module, "HELP", None), description=getattr(module, "HELP", None))
+        command = sub.add_parser(
+            name, help=getattr(module, "HELP", None), description=getattr(module, "HELP", None)
+        )
         module.add_arguments(command)  # type: ignore[attr-defined]
         command.set_defaults(handler=module.run)  # type: ignore[attr-defined]
     return parser

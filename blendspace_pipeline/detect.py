@@ -45,9 +45,7 @@ class RigSettings:
     tpose: str = "auto"
 
     def cache_key(self) -> str:
-        return repr(
-            (self.units, self.up, self.root, self.left_hip, self.right_hip, self.forward, self.tpose)
-        )
+        return repr((self.units, self.up, self.root, self.left_hip, self.right_hip, self.forward, self.tpose))
 
 
 @dataclass
@@ -161,7 +159,9 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
             f"facing taken from joint {clip.skeleton.names[joint]!r} axis {axis_name} (assumed); "
             "set `skeleton.forward` if the character faces another way"
         )
-    return Facing(label=f"{clip.skeleton.names[joint]} axis {axis_name}", vectors=from_joint_axis, notes=notes)
+    return Facing(
+        label=f"{clip.skeleton.names[joint]} axis {axis_name}", vectors=from_joint_axis, notes=notes
+    )
 
 
 def hip_height(clip: Clip, world_pos: FloatArray, up_axis: str, root: RootPoint) -> float:

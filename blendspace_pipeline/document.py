@@ -24,7 +24,9 @@ class AxisDoc(_Strict):
     feature: str = Field(description="Measured feature that drives this axis (e.g. turn_rate, speed).")
     min: float = Field(description="Lower end of the axis range, in the feature's unit.")
     max: float = Field(description="Upper end of the axis range, in the feature's unit.")
-    divisions: int = Field(description="Number of grid intervals; positions snap to min + k*(max-min)/divisions.")
+    divisions: int = Field(
+        description="Number of grid intervals; positions snap to min + k*(max-min)/divisions."
+    )
     unit: str = Field(description="Unit of the feature (m/s, deg/s, deg, s).")
 
 
@@ -44,12 +46,15 @@ class ClipInfoDoc(_Strict):
 class SampleDoc(_Strict):
     name: str = Field(description="Clip name, unique in the blend space.")
     source: str = Field(description="Path of the clip file, relative to the JSON file when possible.")
-    features: dict[str, float] = Field(description="Unsnapped measured features (see spec.md for units and signs).")
+    features: dict[str, float] = Field(
+        description="Unsnapped measured features (see spec.md for units and signs)."
+    )
     position: list[float] = Field(description="Snapped position in axis order (x, y).")
     generated: bool = Field(default=False, description="True when a fix generated this clip.")
     fix: str | None = Field(default=None, description="For generated samples, the fix that made it.")
     snapping_error: list[float] = Field(
-        default_factory=lambda: [0.0, 0.0], description="Snapped minus measured value, per axis, in axis units."
+        default_factory=lambda: [0.0, 0.0],
+        description="Snapped minus measured value, per axis, in axis units.",
     )
     manual_position: list[float] | None = Field(
         default=None, description="Position an author gave by hand in the manifest (`position:`), if any."
@@ -77,10 +82,14 @@ class DiagnosticDoc(_Strict):
 
 class PlaceholderDoc(_Strict):
     position: list[float] = Field(description="Where a clip should be added, in axis units.")
-    priority: Literal["necessary", "suggested"] = Field(description="necessary (orange) or suggested (green).")
+    priority: Literal["necessary", "suggested"] = Field(
+        description="necessary (orange) or suggested (green)."
+    )
     rule: str = Field(description="Rule that asks for it.")
     reason: str = Field(description="Why a clip is wanted there.")
-    features: dict[str, float] = Field(default_factory=dict, description="Feature values a new clip must have.")
+    features: dict[str, float] = Field(
+        default_factory=dict, description="Feature values a new clip must have."
+    )
 
 
 class BuildInfoDoc(_Strict):

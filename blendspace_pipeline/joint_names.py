@@ -53,6 +53,8 @@ def find_hips(skeleton: Skeleton) -> tuple[int, int] | None:
     for wanted in _HIP_BASES:
         for base, sides in sorted(by_base.items()):
             core = base.rstrip("0123456789")
-            if (core == wanted or core.endswith(wanted) or core.startswith(wanted)) and {"L", "R"} <= set(sides):
+            if (core == wanted or core.endswith(wanted) or core.startswith(wanted)) and {"L", "R"} <= set(
+                sides
+            ):
                 return sides["L"], sides["R"]
     return None

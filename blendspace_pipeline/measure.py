@@ -78,7 +78,9 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
     notes: list[str] = []
     used = trim(clip, time_range)
     world_rot, world_pos = forward_kinematics(used)
-    drop = detect_tpose_frame(used, world_pos, settings) if (time_range is None or time_range[0] == 0) else False
+    drop = (
+        detect_tpose_frame(used, world_pos, settings) if (time_range is None or time_range[0] == 0) else False
+    )
     if drop:
         used = used.trimmed(1, used.frame_count)
         world_rot, world_pos = world_rot[1:], world_pos[1:]
@@ -154,4 +156,3 @@ def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[st
         "turn": turn,
         "duration": duration,
     }
-

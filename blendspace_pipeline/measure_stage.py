@@ -49,7 +49,9 @@ def rig_settings(settings: SkeletonSettings) -> RigSettings:
     )
 
 
-def measure_file(path: Path, settings: RigSettings, time_range: tuple[float, float] | None) -> list[tuple[str, Measurement]]:
+def measure_file(
+    path: Path, settings: RigSettings, time_range: tuple[float, float] | None
+) -> list[tuple[str, Measurement]]:
     """Measurements of every animation in ``path``, from the cache when the file is unchanged."""
     key = cache.cache_key(path, settings.cache_key(), time_range)
     cached = cache.load(key)
@@ -60,7 +62,9 @@ def measure_file(path: Path, settings: RigSettings, time_range: tuple[float, flo
     return measured
 
 
-def _measure_job(job: tuple[Path, RigSettings, tuple[float, float] | None]) -> list[tuple[str, Measurement]] | InputError:
+def _measure_job(
+    job: tuple[Path, RigSettings, tuple[float, float] | None],
+) -> list[tuple[str, Measurement]] | InputError:
     """Worker entry: input errors travel back as values (their fields survive pickling)."""
     try:
         return measure_file(*job)
@@ -104,8 +108,14 @@ def _named(resolved: ResolvedClipFile, measured: list[tuple[str, Measurement]]) 
         name = reader_name
         if resolved.entry.name:
             # "<name>/<animation>" keeps multi-animation files apart under a chosen name.
-            name = resolved.entry.name if len(measured) == 1 else f"{resolved.entry.name}/{reader_name.split('/')[-1]}"
-        clips.append(MeasuredClip(name, resolved.path, resolved.entry, resolved.line, resolved.column, measurement))
+            name = (
+                resolved.entry.name
+                if len(measured) == 1
+                else f"{resolved.entry.name}/{reader_name.split('/')[-1]}"
+            )
+        clips.append(
+            MeasuredClip(name, resolved.path, resolved.entry, resolved.line, resolved.column, measurement)
+        )
     return clips
 
 

@@ -66,25 +66,38 @@ def as_sarif(diagnostics: Sequence[Diagnostic], rules: dict[str, tuple[str, str]
             "properties": {"code": d.code, "clips": list(d.clips)},
         }
         if d.path:
-            result["locations"] = [{
-                "physicalLocation": {
-                    "artifactLocation": {"uri": d.path.replace("\\", "/")},
-                    "region": {"startLine": d.line or 1, "startColumn": d.column or 1},
+            result["locations"] = [
+                {
+                    "physicalLocation": {
+                        "artifactLocation": {"uri": d.path.replace("\\", "/")},
+                        "region": {"startLine": d.line or 1, "startColumn": d.column or 1},
+                    }
                 }
-            }]
+            ]
         results.append(result)
     document = {
         "$schema": "https://json.schemastore.org/sarif-2.1.0.json",
         "version": "2.1.0",
-        "runs": [{
-            "tool": {"driver": {
-                "name": "blendspace-pipeline",
-                "version": __version__,
-                "rules": [{"id": slug, "name": slug, "properties": {"code": known[slug][0]},
-                           "shortDescription": {"text": known[slug][1]}} for slug in rule_ids],
-            }},
-            "results": results,
-        }],
+        "runs": [
+            {
+                "tool": {
+                    "driver": {
+                        "name": "blendspace-pipeline",
+                        "version": __version__,
+                        "rules": [
+                            {
+                                "id": slug,
+                                "name": slug,
+                                "properties": {"code": known[slug][0]},
+                                "shortDescription": {"text": known[slug][1]},
+                            }
+                            for slug in rule_ids
+                        ],
+                    }
+                },
+                "results": results,
+            }
+        ],
     }
     return json.dumps(document, indent=2) + "\n"
 
@@ -106,8 +119,14 @@ def as_github(diagnostics: Sequence[Diagnostic]) -> str:
     return "\n".join(lines) + ("\n" if lines else "")
 
 
-def render(fmt: str, diagnostics: Sequence[Diagnostic], *, summary: str = "",
-           extra: dict[str, object] | None = None, rules: dict[str, tuple[str, str]] | None = None) -> str:
+def render(
+    fmt: str,
+    diagnostics: Sequence[Diagnostic],
+    *,
+    summary: str = "",
+    extra: dict[str, object] | None = None,
+    rules: dict[str, tuple[str, str]] | None = None,
+) -> str:
     if fmt == "json":
         return as_json(diagnostics, extra)
     if fmt == "sarif":

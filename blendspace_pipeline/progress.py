@@ -19,7 +19,9 @@ def terminal_progress(label: str = "measuring") -> Progress | None:
         width = 28
         filled = int(width * done / max(total, 1))
         elapsed = time.monotonic() - started
-        sys.stderr.write(f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {elapsed:5.1f}s {name[:30]:<30}")
+        sys.stderr.write(
+            f"\r{label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {elapsed:5.1f}s {name[:30]:<30}"
+        )
         if done == total:
             sys.stderr.write("\n")
         sys.stderr.flush()

@@ -18,7 +18,7 @@ def multiply(a: FloatArray, b: FloatArray) -> FloatArray:
     """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
     ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack(
+    product: FloatArray = np.stack(
         [
             aw * bx + ax * bw + ay * bz - az * by,
             aw * by - ax * bz + ay * bw + az * bx,
@@ -27,10 +27,12 @@ def multiply(a: FloatArray, b: FloatArray) -> FloatArray:
         ],
         axis=-1,
     )
+    return product
 
 
 def conjugate(q: FloatArray) -> FloatArray:
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+    conjugated: FloatArray = np.asarray(q, dtype=np.float64) * np.array([-1.0, -1.0, -1.0, 1.0])
+    return conjugated
 
 
 def normalize(q: FloatArray) -> FloatArray:
@@ -46,7 +48,7 @@ def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     return np.asarray(v + w * t + np.cross(u, t), dtype=np.float64)
 
 
-def from_axis_angle(axis: FloatArray, angle: FloatArray) -> FloatArray:
+def from_axis_angle(axis: FloatArray, angle: FloatArray | float) -> FloatArray:
     """Quaternions rotating by ``angle`` radians about unit ``axis`` (broadcasts)."""
     axis = np.asarray(axis, dtype=np.float64)
     half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
@@ -63,7 +65,7 @@ def from_euler(angles_deg: FloatArray, order: str) -> FloatArray:
     ``angles_deg`` has shape (..., len(order)), one column per letter of ``order``.
     """
     radians = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
-    result = np.broadcast_to(IDENTITY, radians.shape[:-1] + (4,)).copy()
+    result = np.broadcast_to(IDENTITY, (*radians.shape[:-1], 4)).copy()
     for column, letter in enumerate(order):
         result = multiply(result, from_axis_angle(_AXIS[letter.upper()], radians[..., column]))
     return result
@@ -79,7 +81,7 @@ def to_euler(q: FloatArray, order: str) -> FloatArray:
 
     flat = q.reshape(-1, 4)
     angles = Rotation.from_quat(flat).as_euler(order.upper(), degrees=True)
-    return np.asarray(angles.reshape(q.shape[:-1] + (len(order),)), dtype=np.float64)
+    return np.asarray(angles.reshape((*q.shape[:-1], len(order))), dtype=np.float64)
 
 
 def slerp(a: FloatArray, b: FloatArray, t: FloatArray | float) -> FloatArray:

@@ -48,15 +48,22 @@ class LoadedRules:
     def add(self, rule: type[Rule], origin: str) -> None:
         missing = [a for a in ("slug", "code", "severity", "summary") if not hasattr(rule, a)]
         if missing or rule.severity not in ("error", "warning", "info"):
-            self.problems.append(_engine_diagnostic("plugin-error", f"rule {rule.__name__} from {origin} is incomplete "
-                                                    f"(needs slug, code, severity error|warning|info, summary)"))
+            self.problems.append(
+                _engine_diagnostic(
+                    "plugin-error",
+                    f"rule {rule.__name__} from {origin} is incomplete "
+                    f"(needs slug, code, severity error|warning|info, summary)",
+                )
+            )
             return
         if rule.slug in self.rules:
-            self.problems.append(_engine_diagnostic(
-                "plugin-error",
-                f"duplicate rule slug {rule.slug!r}: {origin} repeats the rule from {self.origins[rule.slug]}; "
-                "the first one is kept",
-            ))
+            self.problems.append(
+                _engine_diagnostic(
+                    "plugin-error",
+                    f"duplicate rule slug {rule.slug!r}: {origin} repeats the rule from {self.origins[rule.slug]}; "
+                    "the first one is kept",
+                )
+            )
             return
         self.rules[rule.slug] = rule
         self.origins[rule.slug] = origin
@@ -66,21 +73,31 @@ class LoadedRules:
 
 
 def _engine_diagnostic(slug: str, message: str, hint: str | None = None) -> Diagnostic:
-    return Diagnostic(rule=slug, code=ENGINE_CODES[slug], severity="error" if slug != "unused-suppression"
-                      else "warning", message=message, hint=hint)
+    return Diagnostic(
+        rule=slug,
+        code=ENGINE_CODES[slug],
+        severity="error" if slug != "unused-suppression" else "warning",
+        message=message,
+        hint=hint,
+    )
 
 
 def _import_failure(origin: str, error: BaseException) -> Diagnostic:
     last = traceback.format_exception_only(type(error), error)[-1].strip()
-    return _engine_diagnostic("plugin-error", f"rule plugin {origin} failed to import: {last}",
-                              hint="fix the plugin or remove it from `plugins:` / BLENDSPACE_RULE_PATH")
+    return _engine_diagnostic(
+        "plugin-error",
+        f"rule plugin {origin} failed to import: {last}",
+        hint="fix the plugin or remove it from `plugins:` / BLENDSPACE_RULE_PATH",
+    )
 
 
 def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
     module_name = f"blendspace_plugin_{abs(hash(str(path.resolve()))):x}_{path.stem}"
     spec = importlib.util.spec_from_file_location(module_name, path)
     if spec is None or spec.loader is None:
-        loaded.problems.append(_engine_diagnostic("plugin-error", f"rule plugin {origin} is not a Python file"))
+        loaded.problems.append(
+            _engine_diagnostic("plugin-error", f"rule plugin {origin} is not a Python file")
+        )
         return
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module
@@ -121,12 +138,15 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
         elif isinstance(target, type) and issubclass(target, Rule):
             loaded.add(target, origin)
         else:
-            loaded.problems.append(_engine_diagnostic("plugin-error", f"{origin} is neither a module nor a Rule"))
+            loaded.problems.append(
+                _engine_diagnostic("plugin-error", f"{origin} is neither a module nor a Rule")
+            )
     for folder in filter(None, os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep)):
         directory = Path(folder)
         if not directory.is_dir():
-            loaded.problems.append(_engine_diagnostic(
-                "plugin-error", f"{RULE_PATH_VARIABLE} folder {folder} does not exist"))
+            loaded.problems.append(
+                _engine_diagnostic("plugin-error", f"{RULE_PATH_VARIABLE} folder {folder} does not exist")
+            )
             continue
         for path in sorted(directory.glob("*.py")):
             _load_path(path, loaded, f"{RULE_PATH_VARIABLE} {path}")
@@ -136,9 +156,13 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
             candidate = base_dir / candidate
         if plugin.endswith(".py") or candidate.is_file():
             if not candidate.is_file():
-                loaded.problems.append(_engine_diagnostic(
-                    "plugin-error", f"plugin file {plugin} not found (looked at {candidate})",
-                    hint="paths in `plugins:` are relative to the manifest"))
+                loaded.problems.append(
+                    _engine_diagnostic(
+                        "plugin-error",
+                        f"plugin file {plugin} not found (looked at {candidate})",
+                        hint="paths in `plugins:` are relative to the manifest",
+                    )
+                )
                 continue
             _load_path(candidate, loaded, f"plugin {plugin}")
         else:
@@ -151,26 +175,30 @@ def space_view(space: BlendSpace) -> SpaceView:
     samples = []
     for index, sample in enumerate(space.samples):
         m = sample.clip.measurement
-        samples.append(SampleView(
-            name=sample.name,
-            source=str(sample.clip.source),
-            position=sample.position,
-            measured=sample.measured,
-            normalised=(float(normalised[index, 0]), float(normalised[index, 1])),
-            features=dict(m.features),
-            generated=sample.generated,
-            fix=sample.fix,
-            expect=dict(sample.clip.entry.expect) if sample.clip.entry.expect else None,
-            frames=m.frames,
-            fps=m.fps,
-            meters_per_unit=m.meters_per_unit,
-            units_source=m.units_source,
-            up_axis=m.up_axis,
-            in_place=m.in_place,
-            units_guessed=m.units_guessed,
-            joint_names=tuple(m.joint_names),
-            notes=tuple(m.notes),
-        ))
+        samples.append(
+            SampleView(
+                name=sample.name,
+                source=str(sample.clip.source),
+                position=sample.position,
+                measured=sample.measured,
+                normalised=(float(normalised[index, 0]), float(normalised[index, 1])),
+                features={str(k): float(v) for k, v in m.features.items()},
+                generated=sample.generated,
+                fix=sample.fix,
+                expect={str(k): float(v) for k, v in sample.clip.entry.expect.items()}
+                if sample.clip.entry.expect
+                else None,
+                frames=m.frames,
+                fps=m.fps,
+                meters_per_unit=m.meters_per_unit,
+                units_source=m.units_source,
+                up_axis=m.up_axis,
+                in_place=m.in_place,
+                units_guessed=m.units_guessed,
+                joint_names=tuple(m.joint_names),
+                notes=tuple(m.notes),
+            )
+        )
     thresholds = space.manifest.model.thresholds.model_dump()
     return SpaceView(
         name=space.name,
@@ -201,13 +229,17 @@ def run_rules(space: BlendSpace) -> None:
         override = severity_overrides.get(slug)
         if override == "off":
             continue
-        rule = rule_class(severity=override)  # type: ignore[arg-type]
+        rule = rule_class(severity=override)
         try:
             findings += list(rule.check(view))
         except Exception as error:  # one broken rule must not hide the others
-            findings.append(_engine_diagnostic(
-                "rule-crashed", f"rule {slug} ({loaded.origins[slug]}) crashed: {type(error).__name__}: {error}",
-                hint="report this to the rule's author; the other rules ran"))
+            findings.append(
+                _engine_diagnostic(
+                    "rule-crashed",
+                    f"rule {slug} ({loaded.origins[slug]}) crashed: {type(error).__name__}: {error}",
+                    hint="report this to the rule's author; the other rules ran",
+                )
+            )
     findings = _apply_clip_ignores(space, findings)
     space.diagnostics = sorted(space.diagnostics + findings, key=Diagnostic.sort_key)
     space.placeholders = _unique_placeholders(space.diagnostics)
@@ -246,13 +278,16 @@ def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[D
     for name, clip in entries.items():
         for ignore in clip.entry.ignore:
             if (name, ignore.rule) not in used:
-                kept.append(replace(
-                    _engine_diagnostic(
-                        "unused-suppression",
-                        f"clip {name!r} ignores {ignore.rule!r} but that rule reported nothing on it",
-                        hint="remove the stale `ignore:` entry (or check the rule slug)"),
-                    clips=(name,),
-                ))
+                kept.append(
+                    replace(
+                        _engine_diagnostic(
+                            "unused-suppression",
+                            f"clip {name!r} ignores {ignore.rule!r} but that rule reported nothing on it",
+                            hint="remove the stale `ignore:` entry (or check the rule slug)",
+                        ),
+                        clips=(name,),
+                    )
+                )
     return kept
 
 

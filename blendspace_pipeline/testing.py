@@ -50,18 +50,21 @@ def space_from_positions(
         position = (axes[0].snap(measured_xy[0]), axes[1].snap(measured_xy[1])) if snap else measured_xy
         sample_features = {axes[0].feature: measured_xy[0], axes[1].feature: measured_xy[1], "duration": 1.0}
         sample_features.update((features or {}).get(name, {}))
-        samples.append(SampleView(
-            name=name,
-            source=f"{name}.bvh",
-            position=position,
-            measured=measured_xy,
-            normalised=_normalised(position, axes),
-            features=sample_features,
-            expect=(expect or {}).get(name),
-            frames=31,
-            fps=30.0,
-            in_place=abs(sample_features.get("speed", 1.0)) < 0.05 and abs(sample_features.get("turn_rate", 10.0)) < 3.0,
-        ))
+        samples.append(
+            SampleView(
+                name=name,
+                source=f"{name}.bvh",
+                position=position,
+                measured=measured_xy,
+                normalised=_normalised(position, axes),
+                features=sample_features,
+                expect=(expect or {}).get(name),
+                frames=31,
+                fps=30.0,
+                in_place=abs(sample_features.get("speed", 1.0)) < 0.05
+                and abs(sample_features.get("turn_rate", 10.0)) < 3.0,
+            )
+        )
     if triangles is None:
         points = np.array([s.normalised for s in samples], dtype=np.float64).reshape(-1, 2)
         triangles = triangulate(points).triangles
@@ -74,7 +77,9 @@ def space_from_positions(
     )
 
 
-def space_from_specs(specs: Iterable[object], *, axes: tuple[Axis, Axis] = DEFAULT_AXES, **options: object) -> SpaceView:
+def space_from_specs(
+    specs: Iterable[object], *, axes: tuple[Axis, Axis] = DEFAULT_AXES, **options: object
+) -> SpaceView:
     """Like `space_from_positions`, from procedural clips measured for real."""
     from blendspace_pipeline.measure import measure
     from blendspace_pipeline.procedural import GaitSpec, generate

@@ -85,16 +85,27 @@ def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
         schema_version=1,
         name=space.name,
         axes=[
-            AxisDoc(name=a.name, feature=a.feature, min=a.minimum, max=a.maximum, divisions=a.divisions,
-                    unit=FEATURE_UNITS[a.feature])  # type: ignore[arg-type]
+            AxisDoc(
+                name=a.name,  # type: ignore[arg-type]  # placement axes are named "x"/"y"
+                feature=a.feature,
+                min=a.minimum,
+                max=a.maximum,
+                divisions=a.divisions,
+                unit=FEATURE_UNITS[a.feature],
+            )
             for a in space.axes
         ],
         samples=[_sample_doc(s, out_dir) for s in space.samples],
         triangles=[list(t) for t in space.triangles],
         diagnostics=[diagnostic_doc(d) for d in space.diagnostics],
         placeholders=[
-            PlaceholderDoc(position=[_r(v) for v in p.position], priority=p.priority, rule=p.rule, reason=p.reason,
-                           features={k: _r(v) for k, v in p.features.items()})
+            PlaceholderDoc(
+                position=[_r(v) for v in p.position],
+                priority=p.priority,
+                rule=p.rule,
+                reason=p.reason,
+                features={k: _r(v) for k, v in p.features.items()},
+            )
             for p in space.placeholders
         ],
         layers=list(space.layers),

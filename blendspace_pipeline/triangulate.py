@@ -38,7 +38,9 @@ def triangulate(normalised: FloatArray) -> Triangulation:
     distinct = points[unique]
     centred = distinct - distinct.mean(axis=0)
     if np.linalg.matrix_rank(centred, tol=1e-6) < 2:
-        return Triangulation([], duplicates, "all samples lie on one line; a 2D space needs a third direction")
+        return Triangulation(
+            [], duplicates, "all samples lie on one line; a 2D space needs a third direction"
+        )
     from scipy.spatial import Delaunay  # local import: scipy loads only when a build triangulates
 
     mesh = Delaunay(distinct)
@@ -49,7 +51,7 @@ def triangulate(normalised: FloatArray) -> Triangulation:
 
 def _area(corners: FloatArray) -> float:
     (ax, ay), (bx, by), (cx, cy) = corners
-    return 0.5 * ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay))
+    return float(0.5 * ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay)))
 
 
 def _canonical(tri: tuple[int, ...], points: FloatArray) -> tuple[int, int, int]:

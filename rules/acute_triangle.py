@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 from blendspace_pipeline.rules._geometry import angles, circumcenter, inside_rectangle
+
+from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
 
 class AcuteTriangle(Rule):
@@ -33,8 +34,14 @@ class AcuteTriangle(Rule):
             at = names[tri_angles.index(smallest)]
             centre = circumcenter(*corners)
             if centre is None or not inside_rectangle(centre):
-                lengths = [((corners[i][0] - corners[(i + 1) % 3][0]) ** 2 + (corners[i][1] - corners[(i + 1) % 3][1]) ** 2, i)
-                           for i in range(3)]
+                lengths = [
+                    (
+                        (corners[i][0] - corners[(i + 1) % 3][0]) ** 2
+                        + (corners[i][1] - corners[(i + 1) % 3][1]) ** 2,
+                        i,
+                    )
+                    for i in range(3)
+                ]
                 _, i = max(lengths)
                 a, b = corners[i], corners[(i + 1) % 3]
                 centre = ((a[0] + b[0]) / 2, (a[1] + b[1]) / 2)
@@ -44,6 +51,9 @@ class AcuteTriangle(Rule):
                 clips=names,
                 position=suggestion,
                 hint=f"add a clip near ({suggestion[0]:.3g}, {suggestion[1]:.3g}) or move/remove one of these clips",
-                placeholders=[placeholder(space, suggestion, "suggested", self.slug,
-                                          f"repairs the sliver {' - '.join(names)}")],
+                placeholders=[
+                    placeholder(
+                        space, suggestion, "suggested", self.slug, f"repairs the sliver {' - '.join(names)}"
+                    )
+                ],
             )

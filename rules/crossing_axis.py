@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.api import Diagnostic, Placeholder, Rule, SpaceView, placeholder
 from blendspace_pipeline.rules._geometry import distance, main_axes
+
+from blendspace_pipeline.api import Diagnostic, Placeholder, Rule, SpaceView, placeholder
 
 
 class CrossingAxis(Rule):
@@ -57,8 +58,9 @@ class CrossingAxis(Rule):
             "or let the build bake one (fixes.axis_clips)",
             fix="axis-clip",
             fix_data={"edge": [names[0], names[1]], "axis": axis.name, "point": list(point)},
-            placeholders=[placeholder(space, point, "necessary", self.slug,
-                                      f"crossing of edge {names[0]} - {names[1]}")],
+            placeholders=[
+                placeholder(space, point, "necessary", self.slug, f"crossing of edge {names[0]} - {names[1]}")
+            ],
         )
 
     def _missing_key_clips(self, space: SpaceView) -> Iterator[Diagnostic]:
@@ -68,9 +70,13 @@ class CrossingAxis(Rule):
         if x_axis.minimum <= 0.0 <= x_axis.maximum and y_axis.minimum <= 0.0 <= y_axis.maximum:
             keys.append(((0.0, 0.0), "idle"))
             if x_axis.minimum < 0.0:
-                keys.append(((x_axis.minimum / 2.0, 0.0), f"{x_axis.feature} {x_axis.minimum / 2:g} in place"))
+                keys.append(
+                    ((x_axis.minimum / 2.0, 0.0), f"{x_axis.feature} {x_axis.minimum / 2:g} in place")
+                )
             if x_axis.maximum > 0.0:
-                keys.append(((x_axis.maximum / 2.0, 0.0), f"{x_axis.feature} {x_axis.maximum / 2:g} in place"))
+                keys.append(
+                    ((x_axis.maximum / 2.0, 0.0), f"{x_axis.feature} {x_axis.maximum / 2:g} in place")
+                )
             ys = [s.position[1] for s in space.samples]
             if any(y > 0 for y in ys):
                 keys.append(((0.0, max(ys)), f"fastest {y_axis.feature} forward at {x_axis.feature} 0"))
@@ -80,7 +86,9 @@ class CrossingAxis(Rule):
             target = space.to_normalised(position)
             if any(distance(s.normalised, target) <= tau for s in space.samples):
                 continue
-            mark: Placeholder = placeholder(space, position, "necessary", self.slug, f"missing key clip: {label}")
+            mark: Placeholder = placeholder(
+                space, position, "necessary", self.slug, f"missing key clip: {label}"
+            )
             yield self.report(
                 f"key clip missing on the main axes: {label} at ({position[0]:g}, {position[1]:g})",
                 position=position,

@@ -21,8 +21,11 @@ class DegenerateSpace(Rule):
         if space.triangles or not space.samples:
             return
         distinct = {s.position for s in space.samples}
-        reason = (f"only {len(distinct)} distinct position(s)" if len(distinct) < 3
-                  else "all samples lie on one line")
+        reason = (
+            f"only {len(distinct)} distinct position(s)"
+            if len(distinct) < 3
+            else "all samples lie on one line"
+        )
         yield self.report(
             f"the blend space has no triangles: {reason}",
             clips=[s.name for s in space.samples],

@@ -4,13 +4,22 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView, placeholder
 from blendspace_pipeline.rules._geometry import main_axes
+
+from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView, placeholder
 
 # How far a measured feature may be from its `expect:` value before it is reported.
 EXPECT_TOLERANCE = {"m/s": 0.05, "deg/s": 1.5, "deg": 2.0, "s": 0.05}
-UNITS = {"speed": "m/s", "displacement_speed": "m/s", "forward_speed": "m/s", "lateral_speed": "m/s",
-         "direction": "deg", "turn_rate": "deg/s", "turn": "deg", "duration": "s"}
+UNITS = {
+    "speed": "m/s",
+    "displacement_speed": "m/s",
+    "forward_speed": "m/s",
+    "lateral_speed": "m/s",
+    "direction": "deg",
+    "turn_rate": "deg/s",
+    "turn": "deg",
+    "duration": "s",
+}
 
 
 class Misalignment(Rule):
@@ -51,8 +60,11 @@ class Misalignment(Rule):
                     "(or enable fixes.straighten); otherwise set `expect:` to say so",
                     fix="straighten" if axis.feature in ("turn_rate", "turn") else None,
                     fix_data={"axis": axis.name},
-                    placeholders=[placeholder(space, intended, "necessary", self.slug,
-                                              f"straight version of {sample.name}")],
+                    placeholders=[
+                        placeholder(
+                            space, intended, "necessary", self.slug, f"straight version of {sample.name}"
+                        )
+                    ],
                 )
             yield from self._expectations(space, sample)
 
@@ -66,12 +78,21 @@ class Misalignment(Rule):
             unit = UNITS.get(feature, "")
             if abs(measured - wanted) <= EXPECT_TOLERANCE.get(unit, 0.05):
                 continue
-            intended = [wanted if axis.feature == feature else sample.position[i] for i, axis in enumerate(space.axes)]
+            intended = [
+                wanted if axis.feature == feature else sample.position[i] for i, axis in enumerate(space.axes)
+            ]
             yield self.report(
                 f"{sample.name} measures {feature} {measured:.3g} {unit} but expects {wanted:g}",
                 clips=[sample.name],
                 position=sample.position,
                 hint=f"re-author {sample.name} to match, or correct its `expect:` in the manifest",
-                placeholders=[placeholder(space, intended, "necessary", self.slug,
-                                          f"{sample.name} as intended ({feature} {wanted:g})")],
+                placeholders=[
+                    placeholder(
+                        space,
+                        intended,
+                        "necessary",
+                        self.slug,
+                        f"{sample.name} as intended ({feature} {wanted:g})",
+                    )
+                ],
             )

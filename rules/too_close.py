@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.api import Diagnostic, Rule, SpaceView
 from blendspace_pipeline.rules._geometry import distance
+
+from blendspace_pipeline.api import Diagnostic, Rule, SpaceView
 
 
 class TooClose(Rule):
@@ -48,7 +49,10 @@ class TooClose(Rule):
             cx = sum(space.samples[i].position[0] for i in members) / len(members)
             cy = sum(space.samples[i].position[1] for i in members) / len(members)
             centre_n = space.to_normalised((cx, cy))
-            keep = min(members, key=lambda i: (distance(space.samples[i].normalised, centre_n), space.samples[i].name))
+            keep = min(
+                members,
+                key=lambda i: (distance(space.samples[i].normalised, centre_n), space.samples[i].name),
+            )
             yield self.report(
                 f"{len(names)} clips lie closer than {tau:g} (normalised): {', '.join(names)}",
                 clips=names,

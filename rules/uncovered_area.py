@@ -30,7 +30,9 @@ def _hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
 
 
 def _area(polygon: list[tuple[float, float]]) -> float:
-    return 0.5 * abs(sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(polygon, polygon[1:] + polygon[:1], strict=True)))
+    return 0.5 * abs(
+        sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(polygon, polygon[1:] + polygon[:1], strict=True))
+    )
 
 
 def _inside(point: tuple[float, float], hull: list[tuple[float, float]]) -> bool:

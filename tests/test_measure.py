@@ -15,7 +15,9 @@ SPEED_TOLERANCE = 0.03  # relative, as the issue asks
 TURN_RATE_TOLERANCE = 1.5  # deg/s
 
 
-def assert_measures(spec: GaitSpec, settings: RigSettings = AUTO, **generate_options: object) -> dict[str, float]:
+def assert_measures(
+    spec: GaitSpec, settings: RigSettings = AUTO, **generate_options: object
+) -> dict[str, float]:
     clip = generate(spec, **generate_options)  # type: ignore[arg-type]
     features = measure(clip, settings).features
     assert features["speed"] == pytest.approx(spec.signed_speed, rel=SPEED_TOLERANCE, abs=0.01)
@@ -65,13 +67,17 @@ def test_two_full_spins_unwrap() -> None:
 
 @pytest.mark.parametrize("heading", [0.0, 37.0, 179.0, -135.0])
 def test_start_position_and_heading_do_not_matter(heading: float) -> None:
-    spec = GaitSpec("moved", speed=1.5, turn_rate=20.0, duration=1.0, start_position=(12.0, -7.5), start_heading=heading)
+    spec = GaitSpec(
+        "moved", speed=1.5, turn_rate=20.0, duration=1.0, start_position=(12.0, -7.5), start_heading=heading
+    )
     assert_measures(spec)
 
 
 @pytest.mark.parametrize("direction", [90.0, -90.0, 45.0, -135.0, 180.0])
 def test_strafes_and_backward_travel(direction: float) -> None:
-    features = assert_measures(GaitSpec("strafe", speed=1.2, direction=direction, duration=1.0, stride_length=1.0))
+    features = assert_measures(
+        GaitSpec("strafe", speed=1.2, direction=direction, duration=1.0, stride_length=1.0)
+    )
     assert (features["speed"] < 0) == (abs(direction) > 90.0)
 
 

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import pytest
-
-from blendspace_pipeline.procedural import GaitSpec
 from blendspace_pipeline.rules.acute_triangle import AcuteTriangle
 from blendspace_pipeline.rules.axis_zero_off_grid import AxisZeroOffGrid
 from blendspace_pipeline.rules.crossing_axis import CrossingAxis
@@ -15,21 +13,30 @@ from blendspace_pipeline.rules.misalignment import Misalignment
 from blendspace_pipeline.rules.outside_axis_range import OutsideAxisRange
 from blendspace_pipeline.rules.too_close import TooClose
 from blendspace_pipeline.rules.uncovered_area import UncoveredArea, covered_fraction
+
 from blendspace_pipeline.placement import Axis
+from blendspace_pipeline.procedural import GaitSpec
 from blendspace_pipeline.testing import run_rule, space_from_positions, space_from_specs
 
 KEY_SET = {  # idle, turn in place +-90, forward and backward at turn 0, turning walks
-    "idle": (0, 0), "walk": (0, 1.4), "walk_left": (60, 1.4), "walk_right": (-60, 1.4),
-    "tip_left": (90, 0), "tip_right": (-90, 0), "back": (0, -1.2),
+    "idle": (0, 0),
+    "walk": (0, 1.4),
+    "walk_left": (60, 1.4),
+    "walk_right": (-60, 1.4),
+    "tip_left": (90, 0),
+    "tip_right": (-90, 0),
+    "back": (0, -1.2),
 }
 
 
 def test_crossing_axis_bad_case_exact() -> None:
-    space = space_from_specs([
-        GaitSpec("idle", duration=1.0),
-        GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
-        GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
-    ])
+    space = space_from_specs(
+        [
+            GaitSpec("idle", duration=1.0),
+            GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
+            GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
+        ]
+    )
     findings = run_rule(CrossingAxis, space)
     crossings = [f for f in findings if f.clips]
     assert [f.clips for f in crossings] == [("walk_left", "walk_right")]
@@ -48,7 +55,9 @@ def test_crossing_axis_ignores_edges_near_the_axis() -> None:
     # Both ends 3 normalised units from x = 0 (10.8 deg/s): within the 5-unit threshold.
     space = space_from_positions({"idle": (0, 0), "a": (10.8, 1.4), "b": (-10.8, 1.4)})
     assert run_rule(CrossingAxis, space) == []
-    wide = space_from_positions({"idle": (0, 0), "a": (10.8, 1.4), "b": (-10.8, 1.4)}, thresholds={"crossing_axis": 2})
+    wide = space_from_positions(
+        {"idle": (0, 0), "a": (10.8, 1.4), "b": (-10.8, 1.4)}, thresholds={"crossing_axis": 2}
+    )
     assert len([f for f in run_rule(CrossingAxis, wide) if f.clips]) == 1
 
 
@@ -72,16 +81,22 @@ def test_misalignment_near_axis_and_expect() -> None:
     assert "expects 45" in findings[1].message
     assert findings[1].placeholders[0].position == (45.0, 1.4)
     # Exactly on the axis, or far from it: silent.
-    assert run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (0, 4), "wide": (60, 4)})) == []
+    assert (
+        run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (0, 4), "wide": (60, 4)})) == []
+    )
 
 
 def test_misalignment_below_half_a_grid_step_is_on_axis() -> None:
     # 1 deg/s snaps to 0 on a 3.6 deg/s grid: it is on the axis for the engine.
-    assert run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (1.0, 4.0), "x": (90, 2)})) == []
+    assert (
+        run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (1.0, 4.0), "x": (90, 2)})) == []
+    )
 
 
 def test_too_close_clusters() -> None:
-    space = space_from_positions({"a": (0, 1.4), "b": (7.2, 1.5), "c": (14.4, 1.6), "far": (90, 4), "idle": (0, 0)})
+    space = space_from_positions(
+        {"a": (0, 1.4), "b": (7.2, 1.5), "c": (14.4, 1.6), "far": (90, 4), "idle": (0, 0)}
+    )
     findings = run_rule(TooClose, space)
     assert len(findings) == 1
     assert set(findings[0].clips) == {"a", "b", "c"}  # chained: a-b and b-c are each closer than 8

@@ -14,9 +14,13 @@ from blendspace_pipeline.output_formats import FORMATS, render
 
 def add_common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("manifests", nargs="+", type=Path, metavar="MANIFEST", help="manifest YAML file(s)")
-    parser.add_argument("--format", choices=FORMATS, default="text", help="how to print diagnostics (default: text)")
+    parser.add_argument(
+        "--format", choices=FORMATS, default="text", help="how to print diagnostics (default: text)"
+    )
     parser.add_argument("--strict", action="store_true", help="exit 1 on warnings too")
-    parser.add_argument("--jobs", type=int, default=1, metavar="N", help="measure clips in N processes (default 1)")
+    parser.add_argument(
+        "--jobs", type=int, default=1, metavar="N", help="measure clips in N processes (default 1)"
+    )
 
 
 def exit_code(diagnostics: Sequence[Diagnostic], strict: bool) -> int:
@@ -24,5 +28,7 @@ def exit_code(diagnostics: Sequence[Diagnostic], strict: bool) -> int:
     return EXIT_DIAGNOSTICS if any(d.severity in failing for d in diagnostics) else EXIT_OK
 
 
-def emit(fmt: str, diagnostics: Sequence[Diagnostic], summary: str, extra: dict[str, object] | None = None) -> None:
+def emit(
+    fmt: str, diagnostics: Sequence[Diagnostic], summary: str, extra: dict[str, object] | None = None
+) -> None:
     sys.stdout.write(render(fmt, diagnostics, summary=summary, extra=extra))

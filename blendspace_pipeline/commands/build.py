@@ -21,15 +21,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.out is not None and len(args.manifests) > 1:
-        raise UsageError("--out takes one manifest; several manifests write to their own output.dir",
-                         hint="build one manifest per --out, or drop --out")
+        raise UsageError(
+            "--out takes one manifest; several manifests write to their own output.dir",
+            hint="build one manifest per --out, or drop --out",
+        )
     worst = 0
     for manifest in args.manifests:
         result = build(manifest, args.out, jobs=args.jobs, progress=terminal_progress())
         diagnostics = result.space.diagnostics
         written = ", ".join(str(p) for p in result.written)
-        emit(args.format, diagnostics, f"{manifest}: built {len(result.space.samples)} samples, "
-             f"{len(result.space.triangles)} triangles -> {written}\n",
-             extra={"manifest": str(manifest), "outputs": [str(p) for p in result.written]})
+        emit(
+            args.format,
+            diagnostics,
+            f"{manifest}: built {len(result.space.samples)} samples, "
+            f"{len(result.space.triangles)} triangles -> {written}\n",
+            extra={"manifest": str(manifest), "outputs": [str(p) for p in result.written]},
+        )
         worst = max(worst, exit_code(diagnostics, args.strict))
     return worst

@@ -18,16 +18,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     loaded = load_rules()
     rows = [
-        {"slug": slug, "code": rule.code, "severity": rule.severity, "fixable": rule.fixable,
-         "summary": rule.summary, "origin": loaded.origins[slug], "doc": rule.documentation()}
+        {
+            "slug": slug,
+            "code": rule.code,
+            "severity": rule.severity,
+            "fixable": rule.fixable,
+            "summary": rule.summary,
+            "origin": loaded.origins[slug],
+            "doc": rule.documentation(),
+        }
         for slug, rule in sorted(loaded.rules.items(), key=lambda item: item[1].code)
     ]
     if args.format == "json":
-        sys.stdout.write(json.dumps({"rules": rows, "problems": [p.message for p in loaded.problems]}, indent=2) + "\n")
+        sys.stdout.write(
+            json.dumps({"rules": rows, "problems": [p.message for p in loaded.problems]}, indent=2) + "\n"
+        )
     else:
         for row in rows:
             fix = "fixable" if row["fixable"] else ""
-            sys.stdout.write(f"{row['code']:<6} {row['slug']:<24} {row['severity']:<8} {fix:<8} {row['summary']}\n")
+            sys.stdout.write(
+                f"{row['code']:<6} {row['slug']:<24} {row['severity']:<8} {fix:<8} {row['summary']}\n"
+            )
         for problem in loaded.problems:
             sys.stdout.write(f"error: {problem.message}\n")
     return 0

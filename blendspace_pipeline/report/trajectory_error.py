@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.geometry import NORMALISED_EXTENT, AxisRange, locate, normalise
 from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.report.diagram import axis_ranges
 from blendspace_pipeline.triangulate import triangulate
 
 BoolArray = NDArray[np.bool_]
@@ -95,11 +96,6 @@ def _delivered(
     return delivered
 
 
-def axis_ranges(doc: BlendSpaceDocument) -> tuple[AxisRange, AxisRange]:
-    x, y = doc.axes
-    return AxisRange(x.min, x.max), AxisRange(y.min, y.max)
-
-
 def measured_positions(doc: BlendSpaceDocument) -> FloatArray:
     """What each clip really does along the two axes, axis units (N, 2).
 
@@ -128,6 +124,12 @@ def manual_positions(doc: BlendSpaceDocument) -> FloatArray:
     ).reshape(-1, 2)
 
 
+def manual_triangles(doc: BlendSpaceDocument) -> list[list[int]]:
+    """The Delaunay triangles an engine would build from the hand-placed positions."""
+    mesh = triangulate(normalise(manual_positions(doc), axis_ranges(doc)))
+    return [list(t) for t in mesh.triangles]
+
+
 def document_trajectory_error(
     doc: BlendSpaceDocument, *, manual: bool = False, resolution: int | tuple[int, int] = DEFAULT_RESOLUTION
 ) -> TrajectoryErrorGrid:
@@ -136,11 +138,9 @@ def document_trajectory_error(
     Hand-placed positions get their own Delaunay triangulation, as the engine would build it
     from them; the snapped placement uses the document's triangles.
     """
-    axes = axis_ranges(doc)
     if manual:
-        positions = manual_positions(doc)
-        triangles: list[list[int]] | list[tuple[int, int, int]] = triangulate(normalise(positions, axes)).triangles
+        positions, triangles = manual_positions(doc), manual_triangles(doc)
     else:
         positions = np.asarray([s.position for s in doc.samples], dtype=np.float64).reshape(-1, 2)
-        triangles = doc.triangles
-    return trajectory_error(positions, measured_positions(doc), triangles, axes, resolution)
+        triangles = [list(t) for t in doc.triangles]
+    return trajectory_error(positions, measured_positions(doc), triangles, axis_ranges(doc), resolution)

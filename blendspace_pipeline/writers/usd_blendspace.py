@@ -20,7 +20,7 @@ NAMESPACE = "blendspace"
 
 def _identifier(name: str, taken: set[str]) -> str:
     """A valid, unique USD prim name for a clip name (clip names may contain '/' or spaces)."""
-    candidate = Tf.MakeValidIdentifier(name)
+    candidate = str(Tf.MakeValidIdentifier(name))
     unique, counter = candidate, 1
     while unique in taken:
         counter += 1

@@ -1,0 +1,139 @@
+"""`blendspace eval BLENDSPACE.json --at x=..,y=.. [--layer NAME=VALUE ...]`: weights at one query.
+
+Prints what the blend graph (main space, beta and style layers) blends at the query: clips,
+weights summing to 1, the layer each clip comes from and the playback rate that keeps the gait
+cycles aligned. `--format json` gives the same as `Evaluation.to_json()`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
+from blendspace_pipeline.evaluate import DEFAULT_CULL, Evaluation, LayerReport, evaluate
+from blendspace_pipeline.layers_doc import read_document
+
+HELP = "blend weights (and playback rates) the blend graph gives at one query point"
+
+_AT_HINT = (
+    "write --at x=VALUE,y=VALUE (axis units), or name the axes by feature, e.g. --at turn_rate=0,speed=1.4"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("blendspace", type=Path, metavar="BLENDSPACE.json", help="a built N.blendspace.json")
+    parser.add_argument("--at", required=True, metavar="x=..,y=..", help="the query point, in axis units")
+    parser.add_argument(
+        "--layer",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="beta value or style intensity of a layer, 0..1 (repeatable; layers not given are off)",
+    )
+    parser.add_argument(
+        "--cull", type=float, default=DEFAULT_CULL, help=f"drop weights below this (default {DEFAULT_CULL})"
+    )
+    parser.add_argument("--joint", metavar="NAME", help="apply the layers' per-joint masks for this joint")
+    parser.add_argument(
+        "--format", choices=("text", "json"), default="text", help="output format (default: text)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    doc = read_document(args.blendspace)
+    try:
+        x, y = parse_at(args.at, doc)
+        layers = dict(parse_layer_value(text) for text in args.layer)
+        result = evaluate(doc, x, y, layers=layers, cull=args.cull, joint=args.joint)
+    except InputError as error:
+        if error.path is None:
+            error.path = args.blendspace
+        raise
+    sys.stdout.write(
+        json.dumps(result.to_json(), indent=2) + "\n" if args.format == "json" else render(doc, result)
+    )
+    return EXIT_OK
+
+
+def parse_at(text: str, doc: BlendSpaceDocument) -> tuple[float, float]:
+    """``x=1,y=2`` or ``turn_rate=1,speed=2`` (the axes' features) → (x, y)."""
+    aliases: dict[str, int] = {axis.name: index for index, axis in enumerate(doc.axes)}
+    aliases.update({axis.feature: index for index, axis in enumerate(doc.axes)})
+    values: dict[int, float] = {}
+    for part in text.split(","):
+        key, value = _key_value(part, "--at", _AT_HINT)
+        if key not in aliases:
+            raise UsageError(f"--at: unknown axis {key!r} (axes: {_axis_listing(doc)})", hint=_AT_HINT)
+        values[aliases[key]] = _number(value, f"--at {key}", _AT_HINT)
+    if set(values) != {0, 1}:
+        raise UsageError(f"--at {text!r} must give both axes ({_axis_listing(doc)})", hint=_AT_HINT)
+    return values[0], values[1]
+
+
+def parse_layer_value(text: str) -> tuple[str, float]:
+    hint = "write --layer NAME=VALUE with VALUE in 0..1, e.g. --layer lateral=0.5"
+    name, value = _key_value(text, "--layer", hint)
+    return name, _number(value, f"--layer {name}", hint)
+
+
+def _key_value(part: str, option: str, hint: str) -> tuple[str, str]:
+    key, sep, value = part.partition("=")
+    if not sep or not key.strip() or not value.strip():
+        raise UsageError(f"{option}: {part!r} is not NAME=VALUE", hint=hint)
+    return key.strip(), value.strip()
+
+
+def _number(text: str, what: str, hint: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"{what}: {text!r} is not a number", hint=hint) from None
+    if not math.isfinite(value):
+        raise UsageError(f"{what}: {text!r} is not a finite number", hint=hint)
+    return value
+
+
+def _axis_listing(doc: BlendSpaceDocument) -> str:
+    return ", ".join(f"{axis.name} = {axis.feature}" for axis in doc.axes)
+
+
+def render(doc: BlendSpaceDocument, result: Evaluation) -> str:
+    """The text form: one line per clip, then where the query went and how each layer took part."""
+    x_axis, y_axis = doc.axes
+    lines = [
+        f"{doc.name} at {x_axis.feature}={result.query[0]:g} {x_axis.unit}, "
+        f"{y_axis.feature}={result.query[1]:g} {y_axis.unit}"
+        + (f" (joint {result.joint})" if result.joint else ""),
+    ]
+    width = max([len("clip"), *(len(entry.clip) for entry in result.weights)])
+    lines.append(f"  {'clip':<{width}}  weight  rate   layer")
+    for entry in result.weights:
+        rate = f"{entry.playback_rate:.3f}" if entry.playback_rate is not None else "  -  "
+        layer = entry.layer if entry.layer is not None else "(main)"
+        lines.append(f"  {entry.clip:<{width}}  {entry.weight:.4f}  {rate}  {layer}")
+    if result.cycle_length is not None:
+        lines.append(f"blended cycle: {result.cycle_length:.3f} s")
+    if result.hull_point is not None:
+        lines.append(
+            f"outside the hull: the main space evaluates at the nearest hull point "
+            f"({result.hull_point[0]:g}, {result.hull_point[1]:g})"
+        )
+    elif result.outside_hull:
+        lines.append("outside the hull of a beta layer: it evaluates at its nearest hull point")
+    lines += [_layer_line(report) for report in result.layers]
+    return "\n".join(lines) + "\n"
+
+
+def _layer_line(report: LayerReport) -> str:
+    text = f"layer {report.name} ({report.kind}) = {report.value:g}, share {report.share:.4f}"
+    if report.outside_hull:
+        text += ", clamped to its range" if report.kind == "style" else ", outside its hull"
+    if report.mask is not None:
+        joints = ", ".join(f"{name} {weight:g}" for name, weight in sorted(report.mask.joints.items()))
+        text += f"; mask: {joints}; other joints {report.mask.default:g}"
+    return text

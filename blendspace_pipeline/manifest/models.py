@@ -1,0 +1,332 @@
+"""The manifest (``schema_version: 1``) as pydantic models.
+
+The keys and defaults are the contract in spec.md. Every model forbids unknown keys so a typo is an
+error with a line number instead of a silently ignored setting, and every field carries a
+description because these models generate the committed JSON Schema (`blendspace schema`).
+Rules that need a hint to be useful raise `PydanticCustomError` with a ``hint`` in its context;
+the loader turns it into the error's ``hint:`` line.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    NonNegativeFloat,
+    PositiveFloat,
+    PositiveInt,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+FeatureName = Literal[
+    "speed",
+    "displacement_speed",
+    "forward_speed",
+    "lateral_speed",
+    "direction",
+    "turn_rate",
+    "turn",
+    "duration",
+]
+FEATURES: tuple[FeatureName, ...] = (
+    "speed",
+    "displacement_speed",
+    "forward_speed",
+    "lateral_speed",
+    "direction",
+    "turn_rate",
+    "turn",
+    "duration",
+)
+FEATURE_UNITS: dict[FeatureName, str] = {
+    "speed": "m/s",
+    "displacement_speed": "m/s",
+    "forward_speed": "m/s",
+    "lateral_speed": "m/s",
+    "direction": "deg",
+    "turn_rate": "deg/s",
+    "turn": "deg",
+    "duration": "s",
+}
+Unit = Literal["auto", "m", "cm", "mm", "in"]
+Weight = Annotated[float, Field(ge=0.0, le=1.0)]
+_SAFE_STEM = re.compile(r"[A-Za-z0-9_.\-]+")
+
+
+def rule_error(message: str, hint: str) -> PydanticCustomError:
+    """A validation failure the loader reports with its own hint (braces escaped for pydantic's template)."""
+    template = message.replace("{", "{{").replace("}", "}}")
+    return PydanticCustomError("manifest_rule", template, {"hint": hint})
+
+
+class _Model(BaseModel):
+    # allow_inf_nan=False: `.inf`/`.nan` are valid YAML floats but meaningless in an axis or threshold.
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class IgnoreEntry(_Model):
+    """Silence one rule for one clip; the reason is required so the suppression explains itself."""
+
+    rule: str = Field(description="Rule slug (e.g. too-close) or code (e.g. BS004) to silence for this clip.")
+    reason: str = Field(description="Why the finding is accepted; shown in the report. Must not be empty.")
+
+    @field_validator("reason")
+    @classmethod
+    def _reason_not_blank(cls, value: str) -> str:
+        if not value.strip():
+            raise rule_error(
+                "the reason is empty", 'say why the finding is accepted, e.g. reason: "kept for the style"'
+            )
+        return value
+
+
+class ClipEntry(_Model):
+    """One clip file, or a glob of clip files, with optional per-clip settings."""
+
+    path: str = Field(
+        description="Clip file or glob (*, ?, [...], **), relative to the manifest's folder; absolute paths "
+        "and '..' are allowed, backslashes are read as folder separators."
+    )
+    name: str | None = Field(
+        default=None,
+        description="Clip name; default the file stem ('<stem>/<animation>' for multi-animation files). "
+        "A named glob must match exactly one file.",
+    )
+    range: tuple[float, float] | None = Field(
+        default=None, description="Optional trim [start, end] in seconds; 0 <= start < end."
+    )
+    expect: dict[FeatureName, float] | None = Field(
+        default=None,
+        description="Intended feature values, checked by the misalignment rule (e.g. {turn_rate: 0}).",
+    )
+    position: tuple[float, float] | None = Field(
+        default=None,
+        description="Hand placement [x, y] in axis units, compared with the measured one in the report.",
+    )
+    ignore: list[IgnoreEntry] = Field(
+        default_factory=list, description="Rules silenced for this clip, each with a reason."
+    )
+
+    @field_validator("range")
+    @classmethod
+    def _range_order(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
+        if value is None:
+            return value
+        start, end = value
+        if start < 0:
+            raise rule_error(
+                f"starts before 0 s ({start:g})", "clip time starts at 0; use range: [0, end] or later"
+            )
+        if start >= end:
+            raise rule_error(f"start {start:g} s is not before end {end:g} s", "write range: [start, end]")
+        return value
+
+
+class MirrorTokens(_Model):
+    """Name tokens swapped to mirror a clip (e.g. Left <-> Right)."""
+
+    left: str = Field(description="Token that marks left-side joints, e.g. 'Left' or '_l'.")
+    right: str = Field(description="Token that marks right-side joints, e.g. 'Right' or '_r'.")
+
+
+class SkeletonSettings(_Model):
+    """How to read the rig; everything is auto-detected unless set here."""
+
+    units: Unit | PositiveFloat = Field(
+        default="auto",
+        description="Length unit of the clip files: auto, m, cm, mm, in, or a number of metres per file unit "
+        "(for unusual mocap units).",
+    )
+    up: Literal["auto", "y", "z"] = Field(default="auto", description="Up axis of the clip files.")
+    root: str = Field(
+        default="auto",
+        description="Joint whose ground projection is the root motion; auto = the midpoint of the hips.",
+    )
+    left_hip: str = Field(
+        default="auto", description="Left hip joint name; auto = found from the joint names."
+    )
+    right_hip: str = Field(
+        default="auto", description="Right hip joint name; auto = found from the joint names."
+    )
+    mirror: Literal["auto"] | MirrorTokens = Field(
+        default="auto", description="Left/right name tokens swapped when mirroring clips; auto = detected."
+    )
+    forward: Literal["auto", "+x", "-x", "+y", "-y", "+z", "-z"] = Field(
+        default="auto",
+        description="The root joint's forward axis, used when facing cannot come from the hip line.",
+    )
+    tpose: Literal["auto", "keep", "drop"] = Field(
+        default="auto", description="Whether to drop a T-pose/rest first frame; auto = drop it when detected."
+    )
+
+
+class Axis(_Model):
+    """One blend-space axis: the feature that drives it and its grid."""
+
+    feature: FeatureName = Field(description="Measured feature that drives this axis.")
+    min: float = Field(description="Lower end of the axis, in the feature's unit.")
+    max: float = Field(description="Upper end of the axis, in the feature's unit; greater than min.")
+    divisions: PositiveInt = Field(
+        description="Grid intervals; positions snap to min + k*(max-min)/divisions."
+    )
+
+    @model_validator(mode="after")
+    def _min_below_max(self) -> Axis:
+        if self.min >= self.max:
+            raise rule_error(
+                f"min {self.min:g} is not below max {self.max:g}",
+                "swap them or widen the range, e.g. min: -3, max: 6",
+            )
+        return self
+
+
+def _default_x() -> Axis:
+    return Axis(feature="turn_rate", min=-180.0, max=180.0, divisions=100)
+
+
+def _default_y() -> Axis:
+    return Axis(feature="speed", min=-3.0, max=6.0, divisions=90)
+
+
+class Axes(_Model):
+    """The two axes of the blend space."""
+
+    x: Axis = Field(
+        default_factory=_default_x, description="First blend parameter (default turn_rate, -180..180)."
+    )
+    y: Axis = Field(default_factory=_default_y, description="Second blend parameter (default speed, -3..6).")
+
+    @model_validator(mode="after")
+    def _distinct_features(self) -> Axes:
+        # Both axes on one feature put every sample on a line: nothing can be triangulated.
+        if self.x.feature == self.y.feature:
+            raise rule_error(
+                f"both axes use the feature {self.x.feature!r}",
+                "give x and y different features, e.g. x: turn_rate and y: speed",
+            )
+        return self
+
+
+class Thresholds(_Model):
+    """Rule thresholds: distances in normalised axis space (each axis 0..100), angles in degrees."""
+
+    crossing_axis: NonNegativeFloat = Field(
+        default=5.0,
+        description="τχ: how far beyond a main axis an edge's end points may lie before it counts.",
+    )
+    too_close: NonNegativeFloat = Field(
+        default=8.0, description="τd: samples closer than this are too close."
+    )
+    acute_angle: NonNegativeFloat = Field(
+        default=15.0, description="Triangles with an angle below this (deg) are acute."
+    )
+    misalignment: NonNegativeFloat = Field(
+        default=3.0, description="A clip this close to a main axis (or its expect) but off it is misaligned."
+    )
+
+
+class RuleSettings(_Model):
+    """Which rules run and how severe their findings are."""
+
+    select: list[str] = Field(
+        default_factory=lambda: ["all"], description="Rule slugs or codes to run; 'all' = every rule."
+    )
+    ignore: list[str] = Field(default_factory=list, description="Rule slugs or codes not to run.")
+    severity: dict[str, Literal["error", "warning", "info", "off"]] = Field(
+        default_factory=dict, description="Severity overrides by rule slug or code; 'off' disables the rule."
+    )
+
+
+class FixSettings(_Model):
+    """Which automatic fixes a build applies (check never applies them)."""
+
+    mirror: bool = Field(
+        default=True, description="Generate mirrored clips to fill the other side of the space."
+    )
+    axis_clips: bool = Field(
+        default=True, description="Generate clips on the main axes for crossing-axis edges."
+    )
+    too_close: Literal["report", "keep-representative", "merge"] = Field(
+        default="report", description="What to do with samples that are too close."
+    )
+    straighten: bool = Field(default=False, description="Straighten clips that are slightly off their axis.")
+
+
+class Mask(_Model):
+    """Per-joint weights of a style layer."""
+
+    joints: dict[str, Weight] = Field(description="Weight per joint name, 0..1.")
+    default: Weight = Field(default=1.0, description="Weight of joints not listed, 0..1.")
+
+
+class BetaLayer(_Model):
+    """A second blend space with the same axes (BS2), blended with the main one by beta in [0, 1]."""
+
+    name: str = Field(description="Layer name, used by `blendspace eval --layer NAME=VALUE`.")
+    kind: Literal["beta"] = Field(description="Layer kind: beta.")
+    manifest: str = Field(description="Manifest of the second blend space, relative to this manifest.")
+
+
+class StyleLayer(_Model):
+    """A 1D style space over the speed axis, blended in by an intensity."""
+
+    name: str = Field(description="Layer name, used by `blendspace eval --layer NAME=VALUE`.")
+    kind: Literal["style"] = Field(description="Layer kind: style.")
+    clips: list[str | ClipEntry] = Field(
+        min_length=1, description="Style clips: paths, globs or clip entries."
+    )
+    mask: Mask | None = Field(default=None, description="Optional per-joint weights of the style.")
+
+
+Layer = Annotated[BetaLayer | StyleLayer, Field(discriminator="kind")]
+LAYER_KINDS: tuple[str, ...] = ("beta", "style")
+
+
+OutputFormat = Literal["json", "usd", "html", "png"]
+
+
+def _all_formats() -> list[OutputFormat]:
+    return ["json", "usd", "html", "png"]
+
+
+class OutputSettings(_Model):
+    """Where and what a build writes."""
+
+    dir: str = Field(default="build", description="Output folder, relative to the manifest.")
+    formats: list[OutputFormat] = Field(default_factory=_all_formats, description="Outputs to write.")
+
+
+class Manifest(_Model):
+    """A blendspace-pipeline manifest: the clips of one blend space and how to build it."""
+
+    schema_version: Literal[1] = Field(description="Version of the manifest layout; must be 1.")
+    name: str = Field(
+        description="Blend-space name, the file stem of the outputs: letters, digits, '_', '-', '.'."
+    )
+    clips: list[ClipEntry] = Field(min_length=1, description="Clip files or globs, relative to the manifest.")
+    skeleton: SkeletonSettings = Field(default_factory=SkeletonSettings, description="How to read the rig.")
+    axes: Axes = Field(default_factory=Axes, description="The x and y axes.")
+    thresholds: Thresholds = Field(default_factory=Thresholds, description="Rule thresholds.")
+    rules: RuleSettings = Field(default_factory=RuleSettings, description="Rule selection and severities.")
+    fixes: FixSettings = Field(default_factory=FixSettings, description="Automatic fixes a build applies.")
+    plugins: list[str] = Field(
+        default_factory=list, description="Studio rule modules: importable names or paths."
+    )
+    layers: list[Layer] = Field(default_factory=list, description="Beta and style layers (more dimensions).")
+    output: OutputSettings = Field(default_factory=OutputSettings, description="Output folder and formats.")
+
+    @field_validator("name")
+    @classmethod
+    def _safe_stem(cls, value: str) -> str:
+        if not _SAFE_STEM.fullmatch(value) or value in (".", ".."):
+            raise rule_error(
+                f"{value!r} cannot be used as a file name",
+                "use letters, digits, '_', '-' and '.' only, e.g. name: locomotion",
+            )
+        return value

@@ -1,0 +1,183 @@
+"""Turn the manifest's `clips:` entries into clip files, without reading them.
+
+Paths and globs are relative to the manifest's folder (absolute paths and `..` work too), and a
+backslash counts as a folder separator so a manifest written on Windows builds on Linux CI. The
+result is sorted and free of duplicates, so a build does not depend on the order the file system
+lists a folder in. Anything that cannot match is an error at the entry's line.
+"""
+
+from __future__ import annotations
+
+import difflib
+import glob
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+from typing import NoReturn
+
+from blendspace_pipeline.errors import ManifestError
+from blendspace_pipeline.manifest.loader import KeyPath, LoadedManifest
+from blendspace_pipeline.manifest.models import ClipEntry
+from blendspace_pipeline.readers import supported_suffixes
+
+_GLOB_CHARACTERS = re.compile(r"[*?\[]")
+
+
+@dataclass(frozen=True)
+class ResolvedClipFile:
+    """One clip file and the manifest entry (and line) it came from."""
+
+    path: Path
+    entry: ClipEntry
+    entry_index: int
+    line: int
+    column: int
+
+
+def resolve_clip_files(
+    loaded: LoadedManifest, *, entries: Sequence[ClipEntry] | None = None, key: KeyPath = ("clips",)
+) -> list[ResolvedClipFile]:
+    """Every clip file of ``entries`` (default: the manifest's `clips:`), each once.
+
+    ``key`` is where ``entries`` sit in the manifest, so a style layer's clips can be resolved
+    with ``key=("layers", 0, "clips")`` and still get their own lines in messages.
+    """
+    entries = loaded.model.clips if entries is None else entries
+    matched = [_files_of(loaded, entry, (*key, index)) for index, entry in enumerate(entries)]
+    owners = _owners(matched, [_is_glob(loaded, entry) for entry in entries])
+    resolved: list[ResolvedClipFile] = []
+    for index, files in enumerate(matched):
+        line, column = loaded.locate((*key, index))
+        for file in files:
+            if owners[_identity(file)] == index:
+                resolved.append(ResolvedClipFile(file, entries[index], index, line, column))
+    return resolved
+
+
+def _owners(matched: list[list[Path]], globbed: list[bool]) -> dict[Path, int]:
+    """Which entry a file belongs to: the first explicit entry naming it, else the first glob."""
+    owners: dict[Path, int] = {}
+    for index, files in enumerate(matched):
+        for file in files:
+            current = owners.get(_identity(file))
+            if current is None or (globbed[current] and not globbed[index]):
+                owners[_identity(file)] = index
+    return owners
+
+
+def _identity(path: Path) -> Path:
+    # Two spellings of one file (a symlink, `a/../b`) must count as one clip.
+    return path.resolve()
+
+
+def _pattern(entry: ClipEntry) -> str:
+    return entry.path.replace("\\", "/")
+
+
+def _absolute(loaded: LoadedManifest, text: str) -> Path:
+    return Path(os.path.normpath(loaded.directory / text))
+
+
+def _is_glob(loaded: LoadedManifest, entry: ClipEntry) -> bool:
+    text = _pattern(entry)
+    # A file really named `walk[1].bvh` is that file, not a character class.
+    return bool(_GLOB_CHARACTERS.search(text)) and not _absolute(loaded, text).is_file()
+
+
+def _files_of(loaded: LoadedManifest, entry: ClipEntry, key: KeyPath) -> list[Path]:
+    text = _pattern(entry)
+    if not text.strip():
+        _fail(loaded, key, "the clip path is empty", "write a file or a glob, e.g. path: clips/*.bvh")
+    if not _is_glob(loaded, entry):
+        return [_plain_file(loaded, text, key)]
+    files = _glob(loaded, text, key)
+    if entry.name is not None and len(files) > 1:
+        _fail(
+            loaded,
+            key,
+            f"the entry is named {entry.name!r} but its glob {entry.path!r} matched {len(files)} files",
+            f"a name belongs to one clip: drop `name:` or narrow the glob (it matched {_listing(files)})",
+        )
+    return files
+
+
+def _plain_file(loaded: LoadedManifest, text: str, key: KeyPath) -> Path:
+    path = _absolute(loaded, text)
+    if path.is_file():
+        return path
+    if path.is_dir():
+        _fail(
+            loaded,
+            key,
+            f"{text!r} is a folder, not a clip file",
+            f"use a glob to take the clips in it, e.g. path: {text.rstrip('/')}/*.bvh",
+        )
+    _fail(loaded, key, f"clip file {text!r} not found", _missing_hint(path))
+
+
+def _missing_hint(path: Path) -> str:
+    folder = path.parent
+    if not folder.is_dir():
+        existing = next((p for p in folder.parents if p.is_dir()), None)
+        return f"the folder {folder} does not exist" + (
+            f" (nearest existing folder: {existing})" if existing else ""
+        )
+    names = sorted(p.name for p in folder.iterdir() if p.is_file())
+    close = difflib.get_close_matches(path.name, names, n=3)
+    if close:
+        return f"did you mean {' or '.join(repr(n) for n in close)}? (looked in {folder})"
+    return f"looked in {folder}, which holds: {_listing([folder / n for n in names]) or 'no files'}"
+
+
+def _glob(loaded: LoadedManifest, text: str, key: KeyPath) -> list[Path]:
+    root, pattern = _split_glob(loaded, text)
+    found = (
+        [Path(os.path.normpath(root / name)) for name in glob.glob(pattern, root_dir=root, recursive=True)]
+        if root.is_dir()
+        else []
+    )
+    files = sorted((p for p in found if p.is_file()), key=lambda p: p.as_posix())
+    readable = set(supported_suffixes())
+    clips = [p for p in files if p.suffix.lower() in readable]
+    if not clips:
+        _fail(
+            loaded,
+            key,
+            f"glob {text!r} matched no {'readable clip ' if files else ''}files",
+            _no_match_hint(root, files, readable),
+        )
+    return clips
+
+
+def _split_glob(loaded: LoadedManifest, text: str) -> tuple[Path, str]:
+    """The fixed leading folders of a glob, and the rest; only the rest is matched.
+
+    Globbing relative to a fixed root keeps brackets or stars in the manifest's own folder name
+    from being read as pattern characters.
+    """
+    parts = PurePosixPath(text).parts
+    fixed = 0
+    while fixed < len(parts) - 1 and not _GLOB_CHARACTERS.search(parts[fixed]):
+        fixed += 1
+    root = _absolute(loaded, str(PurePosixPath(*parts[:fixed]))) if fixed else loaded.directory
+    return root, "/".join(parts[fixed:])
+
+
+def _no_match_hint(root: Path, files: list[Path], readable: set[str]) -> str:
+    if not root.is_dir():
+        return f"the folder {root} does not exist"
+    if files:
+        return f"it matched {_listing(files)}; readable formats: {', '.join(sorted(readable))}"
+    return f"looked in {root}; check the pattern (`**` matches sub-folders) and the file suffixes"
+
+
+def _listing(paths: Sequence[Path], limit: int = 5) -> str:
+    names = [p.name for p in paths[:limit]]
+    return ", ".join(names) + (f" and {len(paths) - limit} more" if len(paths) > limit else "")
+
+
+def _fail(loaded: LoadedManifest, key: KeyPath, message: str, hint: str) -> NoReturn:
+    line, column = loaded.locate((*key, "path"))
+    raise ManifestError(message, path=loaded.path, line=line, column=column, hint=hint)

@@ -1,0 +1,27 @@
+"""The build's human-facing outputs: `N.report.html` and `N.png`.
+
+The entry points import their modules on call, so writing the HTML never loads OpenImageIO
+(imported only by `png.py`, the image writer).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from blendspace_pipeline.document import BlendSpaceDocument
+
+__all__ = ["write_html_report", "write_png"]
+
+
+def write_html_report(doc: BlendSpaceDocument, path: Path) -> None:
+    """Write the self-contained interactive report (inline CSS, JS and SVG) atomically."""
+    from blendspace_pipeline.report.html import write_html_report as write
+
+    write(doc, path)
+
+
+def write_png(doc: BlendSpaceDocument, path: Path) -> None:
+    """Write the blend-space diagram as a PNG (OpenImageIO) atomically."""
+    from blendspace_pipeline.report.png import write_png as write
+
+    write(doc, path)

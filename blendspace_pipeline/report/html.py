@@ -1,0 +1,370 @@
+"""`N.report.html`: one self-contained, interactive page (inline CSS, JS and SVG; no network).
+
+What a technical animator opens after every build: the blend space with its problem areas and
+placeholders, the diagnostics linked to the diagram, coverage, the trajectory-error map (measured
+vs hand placement), every clip's measurements and the build's settings. Data for the script is
+embedded once as JSON; the script delegates events, so a 1,000-clip report stays light.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from html import escape
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.geometry import normalise
+from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.report import tables
+from blendspace_pipeline.report.atomic import atomic_path
+from blendspace_pipeline.report.diagram import Layout, Scene, axis_ranges, build_scene, convex_hull
+from blendspace_pipeline.report.heatmap import css_gradient, heat_rgba, png_data_uri, scale_maximum
+from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map
+from blendspace_pipeline.report.trajectory_error import (
+    TrajectoryErrorGrid,
+    document_trajectory_error,
+    has_manual_positions,
+    manual_positions,
+    manual_triangles,
+    measured_positions,
+)
+
+SIGNIFICANT = 5  # digits kept in the embedded JSON: far below any measurement's precision
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    measured: TrajectoryErrorGrid
+    manual: TrajectoryErrorGrid | None
+
+    @property
+    def maximum(self) -> float:
+        """Colour-scale top, shared by both placements so their maps compare directly."""
+        extra = [self.manual.max_distance] if self.manual is not None else []
+        return scale_maximum(self.measured.max_distance, *extra)
+
+
+def write_html_report(doc: BlendSpaceDocument, path: Path) -> None:
+    """Write the report atomically: a temporary file in the same folder, then a rename."""
+    text = render_html(doc)
+    with atomic_path(Path(path)) as temporary:
+        temporary.write_text(text, encoding="utf-8", newline="\n")
+
+
+def render_html(doc: BlendSpaceDocument, *, written_at: datetime | None = None) -> str:
+    scene = build_scene(doc, Layout())
+    trajectory = Trajectory(
+        measured=document_trajectory_error(doc),
+        manual=document_trajectory_error(doc, manual=True) if has_manual_positions(doc) else None,
+    )
+    stamp = (written_at or datetime.now(UTC)).strftime("%Y-%m-%d %H:%M:%S UTC")
+    body = "".join(
+        [
+            _summary(doc, scene, trajectory),
+            _diagram_section(scene),
+            _section(
+                "diagnostics", "Diagnostics", tables.diagnostic_filters(doc) + tables.diagnostics_table(doc)
+            ),
+            _section("placeholders", "Clips to add", _placeholder_intro() + tables.placeholders_table(doc)),
+            _coverage_section(doc, scene),
+            _trajectory_section(doc, scene, trajectory),
+            _section("clips", "Clips", tables.clips_table(doc)),
+            _section("build", "Build", tables.build_table(doc, stamp)),
+        ]
+    )
+    title = escape(f"{doc.name} — blend-space report")
+    return (
+        f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f'<meta name="color-scheme" content="light dark"><title>{title}</title>'
+        f"<style>{_asset('report.css')}</style></head><body>"
+        f"<header><h1>{escape(doc.name)} <small>blend-space report</small></h1></header><main>{body}</main>"
+        f'<div id="tooltip" role="tooltip" hidden></div>'
+        f'<script type="application/json" id="report-data">{_script_json(_data(doc, scene, trajectory))}'
+        "</script>"
+        f"<script>{_asset('report.js')}</script></body></html>\n"
+    )
+
+
+def _asset(name: str) -> str:
+    return resources.files("blendspace_pipeline.report").joinpath(name).read_text(encoding="utf-8")
+
+
+def _section(ident: str, title: str, content: str) -> str:
+    return f'<section id="{ident}"><h2>{escape(title)}</h2>{content}</section>'
+
+
+def _summary(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> str:
+    counts = {s: sum(d.severity == s for d in doc.diagnostics) for s in tables.SEVERITIES}
+    generated = sum(s.generated for s in doc.samples)
+    necessary = sum(p.priority == "necessary" for p in doc.placeholders)
+    verdict = (
+        f'<p class="verdict bad">{_plural(counts["error"], "error")} to fix before this space blends '
+        "cleanly.</p>"
+        if counts["error"]
+        else '<p class="verdict good">No errors: the space is usable'
+        + (f", with {_plural(counts['warning'], 'warning')} to review.</p>" if counts["warning"] else ".</p>")
+    )
+    cards = [
+        ("clips", f"{len(doc.samples) - generated}", f"+ {generated} generated" if generated else "measured"),
+        ("errors", str(counts["error"]), f"{counts['warning']} warnings, {counts['info']} info"),
+        ("clips to add", str(len(doc.placeholders)), f"{necessary} necessary"),
+        ("coverage", f"{scene.coverage:.1f}%", "of the axis rectangle"),
+        ("max drift", _g(trajectory.measured.max_distance), "% of an axis range, inside the hull"),
+    ]
+    html = "".join(
+        f'<div class="card"><div class="card-value">{escape(v)}</div>'
+        f'<div class="card-label">{escape(k)}</div>'
+        f'<div class="card-note">{escape(n)}</div></div>'
+        for k, v, n in cards
+    )
+    return f'<section id="summary">{verdict}<div class="cards">{html}</div></section>'
+
+
+def _plural(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def _diagram_section(scene: Scene) -> str:
+    toggles = "".join(
+        f'<label><input type="checkbox" data-layer="{layer}"{" checked" if on else ""}> {label}</label>'
+        for layer, label, on in (
+            ("labels", "names", len(scene.samples) <= LABEL_LIMIT),
+            ("edges", "triangles", True),
+            ("problems", "problem areas", True),
+            ("placeholders", "clips to add", True),
+        )
+    )
+    return (
+        '<section id="diagram"><h2>Blend space</h2><div class="diagram-wrap"><figure>'
+        f"{diagram(scene)}<figcaption>{_legend()}</figcaption></figure>"
+        '<aside id="details" aria-live="polite"><p class="empty">Click a clip, a clip to add or a problem '
+        "area, or a row of the diagnostics table, to see its details here.</p></aside></div>"
+        f'<div class="toggles" id="layer-toggles">{toggles}</div></section>'
+    )
+
+
+def _legend() -> str:
+    items = [
+        ("sample", "measured clip"),
+        ("generated", "generated clip"),
+        ("necessary", "necessary clip to add"),
+        ("suggested", "suggested clip to add"),
+        ("crossing-axis", "edge crossing a main axis"),
+        ("acute-triangle", "acute triangle"),
+        ("misalignment", "misaligned clip"),
+        ("too-close", "clips too close"),
+        ("uncovered-area", "uncovered area"),
+    ]
+    return (
+        '<ul class="legend">'
+        + "".join(f'<li><i class="key {k}"></i>{escape(t)}</li>' for k, t in items)
+        + "</ul>"
+    )
+
+
+def _placeholder_intro() -> str:
+    return (
+        '<p class="note">Author clips with these measurements (or accept the generated ones) and rebuild. '
+        '<span class="prio necessary">necessary</span> clips fix a problem; '
+        '<span class="prio suggested">suggested</span> ones extend coverage or quality.</p>'
+    )
+
+
+def _coverage_section(doc: BlendSpaceDocument, scene: Scene) -> str:
+    x, y = doc.axes
+    uncovered = [d.message for d in doc.diagnostics if d.rule == "uncovered-area"]
+    note = f"<p>{escape(uncovered[0])}</p>" if uncovered else ""
+    rectangle = (x.max - x.min) * (y.max - y.min)
+    return _section(
+        "coverage",
+        "Coverage",
+        f'<div class="meter" role="meter" aria-valuenow="{scene.coverage:.1f}" aria-valuemin="0" '
+        f'aria-valuemax="100"><span style="width:{scene.coverage:.1f}%"></span></div>'
+        f"<p>The hull of the samples covers <strong>{scene.coverage:.1f}%</strong> of the axis rectangle "
+        f"{escape(x.feature)} {x.min:g}…{x.max:g} {escape(x.unit)} × {escape(y.feature)} {y.min:g}…{y.max:g} "
+        f"{escape(y.unit)} ({_g(rectangle * scene.coverage / 100)} of {_g(rectangle)} "
+        f"{escape(x.unit)}·{escape(y.unit)}). Outside the hull engines clamp the query to its edge, so the "
+        f"character cannot reach those values.</p>{note}",
+    )
+
+
+def _trajectory_section(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> str:
+    grid = trajectory.measured
+    views = [_heat_view(doc, scene, "measured", grid, trajectory.maximum)]
+    switch = ""
+    if trajectory.manual is not None:
+        views.append(_heat_view(doc, scene, "manual", trajectory.manual, trajectory.maximum))
+        switch = (
+            '<div class="toggles" id="heat-mode"><label>'
+            '<input type="radio" name="heat-mode" value="measured" '
+            'checked> measured placement</label><label><input type="radio" name="heat-mode" value="manual"> '
+            "authors' hand placement (<code>position:</code>)</label></div>"
+        )
+    bar = (
+        f'<div class="colour-bar"><span class="bar" style="background:{css_gradient()}"></span>'
+        f'<span class="bar-labels"><span>0</span><span>{trajectory.maximum / 2:.3g}</span>'
+        f'<span>≥ {trajectory.maximum:.3g}</span></span><span class="bar-title">error, % of an axis range '
+        '(normalised distance); <span class="outside-key"></span> outside the hull (engines clamp)'
+        "</span></div>"
+    )
+    return _section(
+        "trajectory",
+        "Trajectory error",
+        '<p class="note">At each point the engine blends the clips of its triangle with weights from their '
+        "placed positions; what the character then does is the same blend of what the clips really measure. "
+        "The map shows how far that is from the requested point.</p>"
+        f'{switch}<div class="heat-wrap"><figure>{heat_map(scene, views, grid.distance.shape)}{bar}</figure>'
+        f'<aside id="heat-readout" aria-live="polite">{_trajectory_stats(doc, trajectory)}'
+        '<p id="heat-point" class="empty">Point at the map to read the error there.</p></aside></div>',
+    )
+
+
+def _trajectory_stats(doc: BlendSpaceDocument, trajectory: Trajectory) -> str:
+    x, y = doc.axes
+    rows = []
+    for label, grid in (("measured", trajectory.measured), ("by hand", trajectory.manual)):
+        if grid is None:
+            continue
+        inside = grid.inside.any()
+        ex = float(np.nanmax(grid.error_x)) if inside else 0.0
+        ey = float(np.nanmax(grid.error_y)) if inside else 0.0
+        rows.append(
+            f"<tr><th scope='row'>{label}</th><td>{_g(grid.max_distance)}</td>"
+            f"<td>{_g(grid.mean_distance)}</td>"
+            f"<td>{_g(ex)} {escape(x.unit)}</td><td>{_g(ey)} {escape(y.unit)}</td></tr>"
+        )
+    return (
+        '<table class="meta"><thead><tr><th>placement</th><th>max %</th><th>mean %</th>'
+        f"<th>max {escape(x.feature)}</th><th>max {escape(y.feature)}</th></tr></thead>"
+        f"{''.join(rows)}</table>"
+    )
+
+
+def _g(value: float) -> str:
+    """Three significant digits; below 1e-9 it is rounding noise of an exact result, shown as 0."""
+    return "0" if abs(value) < 1e-9 else f"{value:.3g}"
+
+
+def _heat_view(
+    doc: BlendSpaceDocument, scene: Scene, mode: str, grid: TrajectoryErrorGrid, top: float
+) -> HeatView:
+    axes = axis_ranges(doc)
+    if mode == "manual":
+        placed, triangles = manual_positions(doc), manual_triangles(doc)
+    else:
+        placed = np.asarray([s.position for s in doc.samples], dtype=np.float64).reshape(-1, 2)
+        triangles = [list(t) for t in doc.triangles]
+    normalised = normalise(placed, axes)
+    points = _pixels(scene, normalised)
+    used = sorted({i for t in triangles for i in t})
+    hull = _pixels(scene, np.asarray(convex_hull(normalised[used]))) if used else []
+    edges = sorted(
+        {(min(t[i], t[(i + 1) % 3]), max(t[i], t[(i + 1) % 3])) for t in triangles for i in range(3)}
+    )
+    arrows = []
+    if mode == "manual":
+        measured = _pixels(scene, normalise(measured_positions(doc), axes))
+        arrows = [
+            (points[i], measured[i]) for i, s in enumerate(doc.samples) if s.manual_position is not None
+        ]
+    return HeatView(mode, png_data_uri(heat_rgba(grid.distance, top)), points, edges, hull, arrows)
+
+
+def _pixels(scene: Scene, normalised: np.ndarray[Any, Any]) -> list[tuple[float, float]]:
+    if len(normalised) == 0:
+        return []
+    return [(float(x), float(y)) for x, y in scene.layout.project(normalised)]
+
+
+def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict[str, Any]:
+    """What the script needs, once: details for the side panel and the error grids for hover."""
+    involved: list[list[int]] = [[] for _ in doc.samples]
+    index = {s.name: i for i, s in enumerate(doc.samples)}
+    for i, d in enumerate(doc.diagnostics):
+        for name in d.clips:
+            if name in index:
+                involved[index[name]].append(i)
+    lay = scene.layout
+    return {
+        "axes": [{"feature": a.feature, "unit": a.unit, "min": a.min, "max": a.max} for a in doc.axes],
+        "samples": [
+            _without_empty(
+                {
+                    "name": s.name,
+                    "source": s.source,
+                    "generated": s.generated,
+                    "fix": s.fix,
+                    "features": s.features,
+                    "position": s.position,
+                    "snap": s.snapping_error,
+                    "manual": s.manual_position,
+                    "diagnostics": involved[i],
+                }
+            )
+            for i, s in enumerate(doc.samples)
+        ],
+        "diagnostics": [
+            {
+                "rule": d.rule,
+                "code": d.code,
+                "severity": d.severity,
+                "message": d.message,
+                "hint": d.hint,
+                "fix": d.fix,
+                "clips": d.clips,
+                "position": d.position,
+            }
+            for d in doc.diagnostics
+        ],
+        "placeholders": [p.model_dump() for p in doc.placeholders],
+        "heat": {
+            "max": trajectory.maximum,
+            "box": [lay.left, lay.top, lay.left + lay.plot_width, lay.top + lay.plot_height],
+            "nx": int(trajectory.measured.xs.size),
+            "ny": int(trajectory.measured.ys.size),
+            "measured": _grid_data(trajectory.measured),
+            "manual": _grid_data(trajectory.manual) if trajectory.manual is not None else None,
+        },
+    }
+
+
+def _without_empty(entry: dict[str, Any]) -> dict[str, Any]:
+    """Leave out null, false and empty values: the script reads a missing key the same way."""
+    return {k: v for k, v in entry.items() if v not in (None, False, [], {})}
+
+
+def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
+    """Per-axis errors, row-major from the axis minimum; null outside the hull. Three digits are
+    plenty for a hover readout and halve the size of the grids."""
+
+    def short(values: FloatArray) -> list[float | None]:
+        return [
+            None if math.isnan(v) else (0.0 if abs(v) < 1e-9 else float(f"{v:.3g}")) for v in values.ravel()
+        ]
+
+    return {"ex": short(grid.error_x), "ey": short(grid.error_y)}
+
+
+def _compact(value: Any) -> Any:
+    """Round floats to `SIGNIFICANT` digits and turn NaN into null, recursively."""
+    if isinstance(value, float):
+        return None if not math.isfinite(value) else float(f"{value:.{SIGNIFICANT}g}")
+    if isinstance(value, dict):
+        return {k: _compact(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_compact(v) for v in value]
+    return value
+
+
+def _script_json(data: dict[str, Any]) -> str:
+    """JSON safe inside <script>: no `</script>` or `<!--` can appear in a string."""
+    text = json.dumps(_compact(data), separators=(",", ":"), ensure_ascii=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")

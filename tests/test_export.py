@@ -1,0 +1,507 @@
+"""Engine exports, each parsed back: Godot `.tres` with a tokenizer for Godot's text resource
+format, Unity's `.controller` with ruamel.yaml, the Unreal script with `ast` (and run against a
+recording stand-in for the editor's `unreal` module, which cannot run outside the editor)."""
+
+from __future__ import annotations
+
+import ast
+import math
+import re
+import sys
+import types
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from conftest import shared_data
+from ruamel.yaml import YAML
+from ruamel.yaml.parser import RoundTripParser
+from ruamel.yaml.resolver import VersionedResolver
+from scipy.spatial import Delaunay
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.exporters import export
+
+# --- documents ------------------------------------------------------------------------------
+
+Axis = tuple[str, float, float, int, str]
+TURN_SPEED: tuple[Axis, Axis] = (("turn_rate", -90.0, 180.0, 54, "deg/s"), ("speed", -3.0, 6.0, 90, "m/s"))
+LAYOUT = {
+    "idle": (0.0, 0.0),
+    "walk": (0.0, 1.4),
+    "run": (0.0, 4.5),
+    "back": (0.0, -1.5),
+    "turn_l": (90.0, 0.0),
+    "turn_r": (-90.0, 0.0),
+    "walk_l": (45.0, 1.4),
+    "run_l": (180.0, 4.5),
+}
+
+
+def make_doc(
+    points: dict[str, tuple[float, float]],
+    axes: tuple[Axis, Axis] = TURN_SPEED,
+    layers: list[dict[str, Any]] | None = None,
+) -> BlendSpaceDocument:
+    names = list(points)
+    positions = np.array([points[n] for n in names], dtype=float)
+    lows = np.array([axes[0][1], axes[1][1]])
+    spans = np.array([axes[0][2] - axes[0][1], axes[1][2] - axes[1][1]])
+    return BlendSpaceDocument.model_validate(
+        {
+            "schema_version": 1,
+            "name": "loco",
+            "axes": [
+                {"name": n, "feature": f, "min": lo, "max": hi, "divisions": d, "unit": u}
+                for n, (f, lo, hi, d, u) in zip("xy", axes, strict=True)
+            ],
+            "samples": [
+                {"name": n, "source": f"clips/{n}.bvh", "features": {}, "position": list(p)}
+                for n, p in zip(names, positions, strict=True)
+            ],
+            "triangles": Delaunay((positions - lows) / spans * 100.0).simplices.tolist(),
+            "layers": layers or [],
+        }
+    )
+
+
+STYLE = {
+    "name": "drunk",
+    "kind": "style",
+    "axis": {"feature": "speed", "min": -3.0, "max": 6.0},
+    "samples": [{"name": "drunk_fwd", "source": "s/f.bvh", "position": [1.2], "features": {}}],
+}
+
+# --- a Godot text-resource reader -------------------------------------------------------------
+
+_TOKEN = re.compile(
+    r"""(?P<space>\s+)
+      |(?P<comment>;[^\n]*)
+      |(?P<stringname>&"(?:[^"\\]|\\.)*")
+      |(?P<string>"(?:[^"\\]|\\.)*")
+      |(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)
+      |(?P<ident>[A-Za-z_][A-Za-z0-9_/:.]*)
+      |(?P<punct>[\[\](){},=:])""",
+    re.VERBOSE,
+)
+
+
+@dataclass(frozen=True)
+class Constructor:
+    """A typed value such as Vector2(1, 0) or SubResource("id")."""
+
+    name: str
+    args: list[Any]
+
+
+@dataclass
+class Section:
+    tag: str
+    attributes: dict[str, Any]
+    properties: list[tuple[str, Any]] = field(default_factory=list)
+
+    def get(self, key: str) -> Any:
+        return dict(self.properties)[key]
+
+
+def tokenize(text: str) -> list[tuple[str, str]]:
+    tokens, position = [], 0
+    while position < len(text):
+        match = _TOKEN.match(text, position)
+        if match is None:
+            raise ValueError(f"unexpected character {text[position]!r} at {position}")
+        kind = match.lastgroup
+        assert kind is not None
+        if kind not in ("space", "comment"):
+            tokens.append((kind, match.group()))
+        position = match.end()
+    return tokens
+
+
+class GodotResourceParser:
+    """`[tag key=value ...]` headers, each followed by `key = value` lines."""
+
+    def __init__(self, text: str) -> None:
+        self.tokens = tokenize(text)
+        self.index = 0
+
+    def peek(self) -> tuple[str, str] | None:
+        return self.tokens[self.index] if self.index < len(self.tokens) else None
+
+    def take(self, value: str | None = None) -> tuple[str, str]:
+        token = self.tokens[self.index]
+        if value is not None and token[1] != value:
+            raise ValueError(f"expected {value!r}, found {token[1]!r}")
+        self.index += 1
+        return token
+
+    def sections(self) -> list[Section]:
+        result = []
+        while self.peek() is not None:
+            self.take("[")
+            tag = self.take()[1]
+            attributes = {}
+            while self.peek() != ("punct", "]"):
+                key = self.take()[1]
+                self.take("=")
+                attributes[key] = self.value()
+            self.take("]")
+            section = Section(tag, attributes)
+            while (token := self.peek()) is not None and token[0] == "ident":
+                key = self.take()[1]
+                self.take("=")
+                section.properties.append((key, self.value()))
+            result.append(section)
+        return result
+
+    def value(self) -> Any:
+        kind, text = self.take()
+        if kind == "number":
+            return float(text) if any(c in text for c in ".eE") else int(text)
+        if kind in ("string", "stringname"):
+            return ast.literal_eval(text.lstrip("&"))  # Godot's escapes are a subset of Python's
+        if kind == "ident":
+            if text in ("true", "false", "null"):
+                return {"true": True, "false": False, "null": None}[text]
+            return Constructor(text, self.sequence("(", ")"))
+        if text == "[":
+            self.index -= 1
+            return self.sequence("[", "]")
+        raise ValueError(f"unexpected {text!r}")
+
+    def sequence(self, opening: str, closing: str) -> list[Any]:
+        self.take(opening)
+        items = []
+        while self.peek() != ("punct", closing):
+            items.append(self.value())
+            if self.peek() == ("punct", ","):
+                self.take(",")
+        self.take(closing)
+        return items
+
+
+@dataclass
+class GodotBlendSpace:
+    header: Section
+    nodes: dict[str, str]  # sub-resource id -> animation name
+    resource: Section
+
+    @property
+    def points(self) -> dict[str, tuple[float, float]]:
+        """Animation name -> position, following blend_point_N/node to its sub-resource."""
+        points, index = {}, 0
+        while f"blend_point_{index}/node" in dict(self.resource.properties):
+            node = self.resource.get(f"blend_point_{index}/node")
+            position = self.resource.get(f"blend_point_{index}/pos")
+            assert node.name == "SubResource" and position.name == "Vector2"
+            points[self.nodes[node.args[0]]] = (float(position.args[0]), float(position.args[1]))
+            index += 1
+        return points
+
+
+def read_godot(text: str) -> GodotBlendSpace:
+    header, *rest = GodotResourceParser(text).sections()
+    subs = [s for s in rest if s.tag == "sub_resource"]
+    assert all(s.attributes["type"] == "AnimationNodeAnimation" for s in subs)
+    (resource,) = [s for s in rest if s.tag == "resource"]
+    return GodotBlendSpace(header, {s.attributes["id"]: s.get("animation") for s in subs}, resource)
+
+
+# --- Godot --------------------------------------------------------------------------------------
+
+
+def test_godot_export_places_every_point_with_our_triangles() -> None:
+    doc = make_doc(LAYOUT)
+    result = export(doc, "godot")
+    space = read_godot(result.text)
+    assert space.header.tag == "gd_resource"
+    assert space.header.attributes["type"] == "AnimationNodeBlendSpace2D"
+    assert space.header.attributes["load_steps"] == len(LAYOUT) + 1
+    radians = math.pi / 180.0  # Godot angles are radians; metres stay metres; no sign flip
+    expected = {name: (x * radians, y) for name, (x, y) in LAYOUT.items()}
+    assert space.points.keys() == expected.keys()
+    for name, position in space.points.items():
+        assert position == pytest.approx(expected[name], abs=1e-8)
+    props = space.resource
+    assert props.get("min_space").args == pytest.approx([-90 * radians, -3.0])
+    assert props.get("max_space").args == pytest.approx([180 * radians, 6.0])
+    assert props.get("snap").args == pytest.approx([5 * radians, 0.1])
+    assert props.get("x_label") == "turn_rate (rad/s)"
+    assert props.get("auto_triangles") is False
+    flat = props.get("triangles")
+    assert flat.name == "PackedInt32Array"
+    assert [flat.args[i : i + 3] for i in range(0, len(flat.args), 3)] == doc.triangles
+
+
+def test_godot_writes_auto_triangles_off_and_triangles_after_every_point() -> None:
+    keys = [key for key, _ in read_godot(export(make_doc(LAYOUT), "godot").text).resource.properties]
+    last_point = max(i for i, key in enumerate(keys) if key.startswith("blend_point_"))
+    assert keys.index("auto_triangles") < keys.index("triangles")
+    assert keys.index("triangles") > last_point
+    nodes = [i for i, key in enumerate(keys) if key.endswith("/node")]
+    assert all(keys[i + 1].endswith("/pos") for i in nodes)  # node creates the point, then pos
+
+
+def test_godot_round_trips_the_tps_demo_layout() -> None:
+    sources = shared_data("godot-tps-demo", "SOURCES.md").read_text(encoding="utf-8")
+    found = re.findall(r"(\w+) at \((-?\d+),\s*(-?\d+)\)", sources)
+    layout = {name: (float(x), float(y)) for name, x, y in found}
+    assert layout == {
+        "strafe_left": (1.0, 0.0),
+        "strafe_right": (-1.0, 0.0),
+        "strafe_back": (0.0, -1.0),
+        "strafe_front": (0.0, 1.0),
+        "Idlecombat": (0.0, 0.0),
+    }
+    axes: tuple[Axis, Axis] = (
+        ("lateral_speed", -1.0, 1.0, 20, "m/s"),
+        ("forward_speed", -1.0, 1.0, 20, "m/s"),
+    )
+    doc = make_doc(layout, axes=axes)
+    space = read_godot(export(doc, "godot").text)
+    assert space.points == layout
+    assert space.resource.get("min_space").args == [-1, -1]
+    assert space.resource.get("max_space").args == [1, 1]
+    assert space.resource.get("snap").args == pytest.approx([0.1, 0.1])
+    assert len(space.resource.get("triangles").args) == 4 * 3  # the diamond around Idlecombat
+
+
+def test_godot_refuses_more_points_than_it_can_hold() -> None:
+    grid = {f"c{i}_{j}": (float(i * 20 - 90), float(j - 3)) for i in range(11) for j in range(6)}
+    with pytest.raises(InputError, match="at most 64"):
+        export(make_doc(grid), "godot")
+
+
+def test_godot_string_escapes_survive_the_parser() -> None:
+    doc = make_doc({'a "quoted" \\ name': (0.0, 0.0), "b": (90.0, 0.0), "c": (0.0, 4.5)})
+    assert 'a "quoted" \\ name' in read_godot(export(doc, "godot").text).points
+
+
+# --- Unity --------------------------------------------------------------------------------------
+
+UNITY_TAG = "tag:unity3d.com,2011:"
+
+
+class _UnityParser(RoundTripParser):
+    """Unity declares `%TAG !u!` once for every document; YAML scopes it to the first one."""
+
+    def process_directives(self) -> Any:
+        value = super().process_directives()
+        self.tag_handles.setdefault("!u!", UNITY_TAG)
+        return value
+
+
+class _Yaml12Resolver(VersionedResolver):
+    """Unity writes `%YAML 1.1` but means no 1.1 booleans: `{x: 0, y: 0}` has a key `y`."""
+
+    @property
+    def processing_version(self) -> Any:
+        return (1, 2)
+
+
+def read_unity(text: str) -> dict[int, tuple[int, dict[str, Any]]]:
+    """fileID -> (class ID, the object's fields)."""
+    yaml = YAML(typ="rt")
+    yaml.Parser = _UnityParser
+    yaml.Resolver = _Yaml12Resolver
+    objects = {}
+    for document in yaml.load_all(text):
+        tag = document.tag.value
+        assert tag.startswith(UNITY_TAG)
+        ((_, fields),) = document.items()
+        objects[int(document.anchor.value)] = (int(tag[len(UNITY_TAG) :]), fields)
+    return objects
+
+
+def _of_class(objects: dict[int, tuple[int, dict[str, Any]]], class_id: int) -> tuple[int, dict[str, Any]]:
+    (found,) = [(file_id, fields) for file_id, (cid, fields) in objects.items() if cid == class_id]
+    return found
+
+
+def test_unity_export_is_a_controller_with_a_freeform_cartesian_tree() -> None:
+    result = export(make_doc(LAYOUT), "unity")
+    assert result.text.startswith("%YAML 1.1\n%TAG !u! tag:unity3d.com,2011:\n--- !u!91 &9100000\n")
+    objects = read_unity(result.text)
+    controller_id, controller = _of_class(objects, 91)
+    machine_id, machine = _of_class(objects, 1107)
+    state_id, state = _of_class(objects, 1102)
+    tree_id, tree = _of_class(objects, 206)
+    assert controller_id == 9100000
+    assert [p["m_Name"] for p in controller["m_AnimatorParameters"]] == ["turn_rate", "speed"]
+    assert all(p["m_Type"] == 1 for p in controller["m_AnimatorParameters"])  # float parameters
+    assert controller["m_AnimatorLayers"][0]["m_StateMachine"]["fileID"] == machine_id
+    assert machine["m_DefaultState"]["fileID"] == state_id
+    assert machine["m_ChildStates"][0]["m_State"]["fileID"] == state_id
+    assert state["m_Motion"]["fileID"] == tree_id
+    assert tree["m_BlendType"] == 3
+    assert (tree["m_BlendParameter"], tree["m_BlendParameterY"]) == ("turn_rate", "speed")
+    # Unity's positive yaw turns right: turn rates change sign, speeds stay in m/s.
+    positions = [(c["m_Position"]["x"], c["m_Position"]["y"]) for c in tree["m_Childs"]]
+    assert positions == pytest.approx([(-x, y) for x, y in LAYOUT.values()])
+    assert any("gradient bands" in note for note in result.notes)
+    assert any("turn_rate flipped" in note for note in result.notes)
+
+
+# --- Unreal -------------------------------------------------------------------------------------
+
+
+def _literals(script: str) -> dict[str, Any]:
+    values = {}
+    for node in ast.parse(script).body:
+        if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Name):
+            values[node.targets[0].id] = ast.literal_eval(node.value)
+    return values
+
+
+def _calls(script: str) -> list[str]:
+    """Every call in the script as source text, e.g. `unreal.BlendSample()`."""
+    return [ast.unparse(node) for node in ast.walk(ast.parse(script)) if isinstance(node, ast.Call)]
+
+
+def test_unreal_script_sets_axes_and_samples_in_unreal_units() -> None:
+    result = export(make_doc(LAYOUT), "unreal")
+    values = _literals(result.text)
+    # x: turn_rate flips sign (positive yaw turns right) so -90..180 becomes -180..90 deg/s;
+    # y: speed becomes cm/s.
+    assert values["AXES"] == [("turn_rate (deg/s)", -180.0, 90.0, 54), ("speed (cm/s)", -300.0, 600.0, 90)]
+    assert values["SAMPLES"] == [
+        (n, pytest.approx(-x), pytest.approx(y * 100.0)) for n, (x, y) in LAYOUT.items()
+    ]
+    assert set(values["ANIMATIONS"]) == set(LAYOUT)
+    calls = _calls(result.text)
+    assert "unreal.BlendSpaceFactoryNew()" in calls
+    assert "tools.create_asset(ASSET_NAME, PACKAGE_PATH, unreal.BlendSpace, factory)" in calls
+    assert "blend_space.set_editor_property('blend_parameters', parameters)" in calls
+    assert "blend_space.set_editor_property('sample_data', samples)" in calls
+    assert "parameter.set_editor_property('grid_num', divisions)" in calls
+    assert "unreal.Vector(x, y, 0.0)" in calls
+    assert "resave" in result.text or "save the asset" in result.text
+
+
+class _Struct:
+    def __init__(self, *args: Any) -> None:
+        self.args = args
+        self.props: dict[str, Any] = {}
+
+    def set_editor_property(self, name: str, value: Any) -> None:
+        self.props[name] = value
+
+    def get_editor_property(self, name: str) -> Any:
+        return self.props[name]
+
+
+def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any]]:
+    """The few `unreal` names the script uses, recording what it does to the asset."""
+    record: dict[str, Any] = {}
+    unreal = types.ModuleType("unreal")
+
+    class BlendSpace(_Struct):
+        pass
+
+    def create_asset(name: str, path: str, cls: type[_Struct], factory: _Struct) -> _Struct:
+        asset = cls()
+        asset.set_editor_property("blend_parameters", [_Struct(), _Struct(), _Struct()])
+        record.update(created=(name, path, factory.props), asset=asset)
+        return asset
+
+    unreal.BlendSpace = BlendSpace  # type: ignore[attr-defined]
+    unreal.BlendParameter = unreal.BlendSample = unreal.BlendSpaceFactoryNew = _Struct  # type: ignore[attr-defined]
+    unreal.Vector = lambda *xyz: tuple(xyz)  # type: ignore[attr-defined]
+    unreal.load_asset = lambda path: None if path in missing else f"asset:{path}"  # type: ignore[attr-defined]
+    unreal.log = lambda text: record.setdefault("log", text)  # type: ignore[attr-defined]
+    tools = types.SimpleNamespace(create_asset=create_asset)
+    unreal.AssetToolsHelpers = types.SimpleNamespace(get_asset_tools=lambda: tools)  # type: ignore[attr-defined]
+    unreal.EditorAssetLibrary = types.SimpleNamespace(  # type: ignore[attr-defined]
+        does_asset_exist=lambda path: False, save_loaded_asset=lambda asset: record.setdefault("saved", asset)
+    )
+    editor = types.SimpleNamespace(open_editor_for_assets=lambda assets: record.setdefault("opened", assets))
+    unreal.AssetEditorSubsystem = object  # type: ignore[attr-defined]
+    unreal.get_editor_subsystem = lambda cls: editor  # type: ignore[attr-defined]
+    return unreal, record
+
+
+def _run_script(script: str, missing: set[str], monkeypatch: pytest.MonkeyPatch) -> dict[str, Any]:
+    unreal, record = _stand_in_unreal(missing)
+    monkeypatch.setitem(sys.modules, "unreal", unreal)
+    exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
+    return record
+
+
+def test_unreal_script_runs_and_builds_the_asset(monkeypatch: pytest.MonkeyPatch) -> None:
+    script = export(make_doc(LAYOUT), "unreal").text
+    record = _run_script(script, set(), monkeypatch)
+    asset = record["asset"]
+    assert record["created"][:2] == ("BS_loco", "/Game/BlendSpaces")
+    x_axis, y_axis, _ = asset.get_editor_property("blend_parameters")
+    assert (x_axis.props["min"], x_axis.props["max"], x_axis.props["grid_num"]) == (-180.0, 90.0, 54)
+    assert (y_axis.props["min"], y_axis.props["max"], y_axis.props["grid_num"]) == (-300.0, 600.0, 90)
+    assert x_axis.props["snap_to_grid"] and y_axis.props["display_name"] == "speed (cm/s)"
+    samples = asset.get_editor_property("sample_data")
+    assert [s.props["animation"] for s in samples] == [f"asset:/Game/Animations/{n}" for n in LAYOUT]
+    values = [s.props["sample_value"] for s in samples]
+    assert values == [pytest.approx((-x, y * 100.0, 0.0)) for x, y in LAYOUT.values()]
+    assert record["saved"] is asset and record["opened"] == [asset]
+
+
+def test_unreal_script_stops_before_touching_anything_when_animations_are_missing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    script = export(make_doc(LAYOUT), "unreal").text
+    with pytest.raises(RuntimeError, match="walk: /Game/Animations/walk"):
+        _run_script(script, {"/Game/Animations/walk"}, monkeypatch)
+
+
+def test_unreal_notes_duplicate_positions() -> None:
+    doc = make_doc({"a": (0.0, 0.0), "b": (90.0, 0.0), "c": (0.0, 4.5)})
+    raw = doc.model_dump()
+    raw["samples"].append({"name": "d", "source": "clips/d.bvh", "features": {}, "position": [90.0, 0.0]})
+    result = export(BlendSpaceDocument.model_validate(raw), "unreal")
+    assert any("b = d" in note for note in result.notes)
+
+
+# --- the command ------------------------------------------------------------------------------
+
+
+def _write(doc: BlendSpaceDocument, folder: Path) -> Path:
+    path = folder / "loco.blendspace.json"
+    path.write_text(doc.model_dump_json(), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(("engine", "file_name"), [("godot", "loco.tres"), ("unity", "loco.controller"),
+                                                    ("unreal", "loco_unreal.py")])  # fmt: skip
+def test_export_command_writes_beside_the_json_and_notes_what_is_lost(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], engine: str, file_name: str
+) -> None:
+    path = _write(make_doc(LAYOUT, layers=[STYLE]), tmp_path)
+    assert main(["export", str(path), "--engine", engine]) == 0
+    captured = capsys.readouterr()
+    assert (tmp_path / file_name).is_file()
+    assert f"wrote {tmp_path / file_name}" in captured.out
+    assert "layers drunk are not exported" in captured.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["loco.blendspace.json", file_name])
+
+
+def test_export_command_out_takes_a_file_or_a_folder(tmp_path: Path) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    (tmp_path / "godot").mkdir()
+    assert main(["export", str(path), "--engine", "godot", "--out", str(tmp_path / "godot")]) == 0
+    assert (
+        read_godot((tmp_path / "godot" / "loco.tres").read_text(encoding="utf-8")).points.keys()
+        == LAYOUT.keys()
+    )
+    assert main(["export", str(path), "--engine", "godot", "--out", str(tmp_path / "walk.tres")]) == 0
+    assert (tmp_path / "walk.tres").is_file()
+
+
+def test_export_command_rejects_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    assert main(["export", str(path), "--engine", "godot", "--out", str(tmp_path / "no" / "x.tres")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["export", str(path), "--engine", "cryengine"]) == 2
+    assert main(["export", str(tmp_path / "missing.json"), "--engine", "unity"]) == 2
+    assert "cannot read" in capsys.readouterr().err
