@@ -10,6 +10,7 @@ from blendspace_pipeline.rules.degenerate_space import DegenerateSpace, Duplicat
 from blendspace_pipeline.rules.in_place_clip import InPlaceClip
 from blendspace_pipeline.rules.inconsistent_set import InconsistentFps
 from blendspace_pipeline.rules.misalignment import Misalignment
+from blendspace_pipeline.rules.missing_opposite import MissingOpposite
 from blendspace_pipeline.rules.outside_axis_range import OutsideAxisRange
 from blendspace_pipeline.rules.too_close import TooClose
 from blendspace_pipeline.rules.uncovered_area import UncoveredArea, covered_fraction
@@ -133,3 +134,23 @@ def test_axis_zero_off_grid() -> None:
     odd = (Axis("x", "turn_rate", -180, 180, 100), Axis("y", "speed", -3, 6, 10))
     findings = run_rule(AxisZeroOffGrid, space_from_positions({"a": (0, 0)}, axes=odd))
     assert len(findings) == 1 and "axis y" in findings[0].message
+
+
+def test_missing_opposite_reports_each_lone_side_with_a_mirror_fix() -> None:
+    space = space_from_positions({**KEY_SET, "run_left": (90, 4.0), "walk": (0, 1.4)})
+    findings = run_rule(MissingOpposite, space)
+    assert [(d.clips, d.position, d.fix) for d in findings] == [(("run_left",), (-90.0, 4.0), "mirror")]
+    assert findings[0].fix_data == {"source": "run_left", "position": [-90.0, 4.0]}
+    assert findings[0].placeholders[0].priority == "suggested"
+
+
+def test_missing_opposite_accepts_near_counterparts_and_on_axis_clips() -> None:
+    # A counterpart 5.4 deg/s (1.5 normalised) away is close enough; clips on the axis are their own mirror.
+    space = space_from_positions({**KEY_SET, "run_left": (90, 4.0), "run_right": (-95.4, 4.0), "run": (0, 4)})
+    assert run_rule(MissingOpposite, space) == []
+
+
+def test_missing_opposite_needs_a_mirror_odd_axis() -> None:
+    axes = (Axis("x", "forward_speed", -3, 6, 90), Axis("y", "speed", -3, 6, 90))
+    space = space_from_positions({"idle": (0, 0), "walk": (1.4, 1.4), "run": (4, 4)}, axes=axes)
+    assert run_rule(MissingOpposite, space) == []
