@@ -34,6 +34,7 @@ from blendspace_pipeline.placement import Axis
 __all__ = [
     "Axis",
     "Diagnostic",
+    "LayerView",
     "Placeholder",
     "Rule",
     "SampleView",
@@ -67,6 +68,24 @@ class SampleView:
 
 
 @dataclass(frozen=True)
+class LayerView:
+    """A beta or style layer of the space, read-only (see `blendspace_pipeline.layers`).
+
+    A beta layer has the two axes of its own manifest and its samples placed on them. A style
+    layer has one axis (a main-space axis, normally speed); its samples' positions are
+    ``(value, 0.0)``. ``mask`` is the style's per-joint weights (None: all joints).
+    """
+
+    name: str
+    kind: str  # "beta" or "style"
+    axes: tuple[Axis, ...]
+    samples: tuple[SampleView, ...]
+    mask: Mapping[str, float] | None = None
+    mask_default: float = 1.0
+    axes_match: bool = True
+
+
+@dataclass(frozen=True)
 class SpaceView:
     """The placed, triangulated blend space, read-only."""
 
@@ -76,6 +95,7 @@ class SpaceView:
     triangles: tuple[tuple[int, int, int], ...]
     thresholds: Mapping[str, float]
     options: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
+    layers: tuple[LayerView, ...] = ()
 
     def sample(self, name: str) -> SampleView:
         for sample in self.samples:

@@ -12,6 +12,9 @@ _RULE_ANCHORS: dict[str, tuple[str | int, ...]] = {
     "axis-zero-off-grid": ("axes",),
     "uncovered-area": ("axes",),
     "plugin-error": ("plugins",),
+    "layer-axes": ("layers",),
+    "style-coverage": ("layers",),
+    "mask-joints": ("layers",),
 }
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
 from blendspace_pipeline.geometry import AxisRange, normalise
+from blendspace_pipeline.layers import BetaSpace, Layer, analyse_layers
 from blendspace_pipeline.manifest import LoadedManifest, load_manifest
 from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.measure_stage import MeasuredClip, measure_files
@@ -53,11 +54,19 @@ class BlendSpace:
     triangles: list[tuple[int, int, int]]
     diagnostics: list[Diagnostic] = field(default_factory=list)
     placeholders: list[Placeholder] = field(default_factory=list)
-    layers: list[dict[str, object]] = field(default_factory=list)
+    layer_spaces: list[Layer] = field(default_factory=list)
 
     @property
     def name(self) -> str:
         return self.manifest.model.name
+
+    def all_diagnostics(self) -> list[Diagnostic]:
+        """This space's findings and those of its beta layers (anchored in their own manifests)."""
+        found = list(self.diagnostics)
+        for layer in self.layer_spaces:
+            if isinstance(layer, BetaSpace):
+                found += layer.space.all_diagnostics()
+        return found
 
     def axis_ranges(self) -> tuple[AxisRange, AxisRange]:
         return (
@@ -96,8 +105,10 @@ def assemble(loaded: LoadedManifest, clips: list[MeasuredClip]) -> BlendSpace:
     return space
 
 
-def analyse(manifest_path: Path, *, jobs: int = 1, progress: Progress | None = None) -> BlendSpace:
-    """Everything `check` does: read, measure, place, triangulate, run the rules."""
+def analyse(
+    manifest_path: Path, *, jobs: int = 1, progress: Progress | None = None, with_layers: bool = True
+) -> BlendSpace:
+    """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules."""
     from blendspace_pipeline.locate_diagnostics import anchor
     from blendspace_pipeline.rule_engine import run_rules
 
@@ -105,6 +116,8 @@ def analyse(manifest_path: Path, *, jobs: int = 1, progress: Progress | None = N
     files = resolve_clip_files(loaded)
     clips = measure_files(loaded, files, jobs=jobs, progress=progress)
     space = assemble(loaded, clips)
+    if with_layers:
+        space.layer_spaces = analyse_layers(space, jobs=jobs, progress=progress)
     run_rules(space)
     space.diagnostics = anchor(space, space.diagnostics)
     return space

@@ -22,8 +22,10 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING
 
-from blendspace_pipeline.api import Rule, SampleView, SpaceView, iter_rule_classes
+from blendspace_pipeline.api import LayerView, Rule, SampleView, SpaceView, iter_rule_classes
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
+from blendspace_pipeline.layers import BetaSpace, Layer
+from blendspace_pipeline.measure_stage import MeasuredClip
 
 if TYPE_CHECKING:
     from blendspace_pipeline.pipeline import BlendSpace
@@ -170,42 +172,84 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
     return loaded
 
 
-def space_view(space: BlendSpace) -> SpaceView:
+def sample_view(
+    clip: MeasuredClip,
+    position: tuple[float, float],
+    measured: tuple[float, float],
+    normalised: tuple[float, float],
+    *,
+    generated: bool = False,
+    fix: str | None = None,
+) -> SampleView:
+    m = clip.measurement
+    expect = clip.entry.expect
+    return SampleView(
+        name=clip.name,
+        source=str(clip.source),
+        position=position,
+        measured=measured,
+        normalised=normalised,
+        features={str(k): float(v) for k, v in m.features.items()},
+        generated=generated,
+        fix=fix,
+        expect={str(k): float(v) for k, v in expect.items()} if expect else None,
+        frames=m.frames,
+        fps=m.fps,
+        meters_per_unit=m.meters_per_unit,
+        units_source=m.units_source,
+        up_axis=m.up_axis,
+        in_place=m.in_place,
+        units_guessed=m.units_guessed,
+        joint_names=tuple(m.joint_names),
+        notes=tuple(m.notes),
+    )
+
+
+def _samples(space: BlendSpace) -> tuple[SampleView, ...]:
     normalised = space.normalised_positions()
-    samples = []
-    for index, sample in enumerate(space.samples):
-        m = sample.clip.measurement
-        samples.append(
-            SampleView(
-                name=sample.name,
-                source=str(sample.clip.source),
-                position=sample.position,
-                measured=sample.measured,
-                normalised=(float(normalised[index, 0]), float(normalised[index, 1])),
-                features={str(k): float(v) for k, v in m.features.items()},
-                generated=sample.generated,
-                fix=sample.fix,
-                expect={str(k): float(v) for k, v in sample.clip.entry.expect.items()}
-                if sample.clip.entry.expect
-                else None,
-                frames=m.frames,
-                fps=m.fps,
-                meters_per_unit=m.meters_per_unit,
-                units_source=m.units_source,
-                up_axis=m.up_axis,
-                in_place=m.in_place,
-                units_guessed=m.units_guessed,
-                joint_names=tuple(m.joint_names),
-                notes=tuple(m.notes),
-            )
+    return tuple(
+        sample_view(
+            s.clip,
+            s.position,
+            s.measured,
+            (float(normalised[i, 0]), float(normalised[i, 1])),
+            generated=s.generated,
+            fix=s.fix,
         )
-    thresholds = space.manifest.model.thresholds.model_dump()
+        for i, s in enumerate(space.samples)
+    )
+
+
+def _layer_view(layer: Layer) -> LayerView:
+    if isinstance(layer, BetaSpace):
+        return LayerView(
+            layer.name, "beta", layer.space.axes, _samples(layer.space), axes_match=layer.axes_match
+        )
+    axis = layer.axis
+    samples = []
+    for clip, value in zip(layer.clips, layer.positions, strict=True):
+        measured = float(clip.measurement.features[axis.feature])
+        normalised = (value - axis.minimum) / (axis.maximum - axis.minimum) * 100.0
+        samples.append(sample_view(clip, (value, 0.0), (measured, 0.0), (normalised, 0.0)))
+    mask = layer.mask
+    return LayerView(
+        layer.name,
+        "style",
+        (axis,),
+        tuple(samples),
+        mask=dict(mask.joints) if mask is not None else None,
+        mask_default=mask.default if mask is not None else 1.0,
+    )
+
+
+def space_view(space: BlendSpace) -> SpaceView:
     return SpaceView(
         name=space.name,
         axes=space.axes,
-        samples=tuple(samples),
+        samples=_samples(space),
         triangles=tuple(space.triangles),
-        thresholds=thresholds,
+        thresholds=space.manifest.model.thresholds.model_dump(),
+        layers=tuple(_layer_view(layer) for layer in space.layer_spaces),
     )
 
 

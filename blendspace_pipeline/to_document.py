@@ -17,7 +17,10 @@ from blendspace_pipeline.document import (
     PlaceholderDoc,
     SampleDoc,
 )
+from blendspace_pipeline.layers import BetaSpace, Layer
+from blendspace_pipeline.layers_doc import BetaLayerDoc, MaskDoc, StyleAxisDoc, StyleLayerDoc, StyleSampleDoc
 from blendspace_pipeline.measure import FEATURE_UNITS
+from blendspace_pipeline.measure_stage import MeasuredClip
 from blendspace_pipeline.pipeline import BlendSpace, Sample
 
 DECIMALS = 6  # stable, diff-friendly numbers; far below any measurement's precision
@@ -47,18 +50,58 @@ def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
         fix=sample.fix,
         snapping_error=[_r(e) for e in sample.snapping_error],
         manual_position=[float(v) for v in entry.position] if entry.position is not None else None,
-        clip=ClipInfoDoc(
-            duration=_r(m.features["duration"]),
-            fps=_r(m.fps),
-            frames=m.frames,
-            meters_per_unit=_r(m.meters_per_unit),
-            units_source=m.units_source,
-            up_axis=m.up_axis,
-            root=m.root,
-            facing=m.facing,
-            range=[float(v) for v in entry.range] if entry.range is not None else None,
-            notes=list(m.notes),
+        clip=_clip_info(sample.clip),
+    )
+
+
+def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:
+    m = clip.measurement
+    entry = clip.entry
+    return ClipInfoDoc(
+        duration=_r(m.features["duration"]),
+        fps=_r(m.fps),
+        frames=m.frames,
+        meters_per_unit=_r(m.meters_per_unit),
+        units_source=m.units_source,
+        up_axis=m.up_axis,
+        root=m.root,
+        facing=m.facing,
+        range=[float(v) for v in entry.range] if entry.range is not None else None,
+        notes=list(m.notes),
+    )
+
+
+def layer_doc(layer: Layer, out_dir: Path) -> BetaLayerDoc | StyleLayerDoc:
+    """A beta or style layer in the JSON's `layers` list (see `layers_doc`)."""
+    if isinstance(layer, BetaSpace):
+        sub = layer.space
+        return BetaLayerDoc(
+            name=layer.name,
+            kind="beta",
+            source=relative_path(layer.manifest, out_dir),
+            samples=[_sample_doc(s, out_dir) for s in sub.samples],
+            triangles=[list(t) for t in sub.triangles],
+            diagnostics=[diagnostic_doc(d) for d in sub.all_diagnostics()],
+        )
+    axis = layer.axis
+    return StyleLayerDoc(
+        name=layer.name,
+        kind="style",
+        axis=StyleAxisDoc(
+            feature=axis.feature, min=axis.minimum, max=axis.maximum, unit=FEATURE_UNITS[axis.feature]
         ),
+        samples=[
+            StyleSampleDoc(
+                name=clip.name,
+                source=relative_path(clip.source, out_dir),
+                position=[_r(value)],
+                features={k: _r(v) for k, v in clip.measurement.features.items()},
+                clip=_clip_info(clip),
+            )
+            for clip, value in zip(layer.clips, layer.positions, strict=True)
+        ],
+        mask=MaskDoc(joints=dict(layer.mask.joints), default=layer.mask.default) if layer.mask else None,
+        diagnostics=[],
     )
 
 
@@ -108,7 +151,7 @@ def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
             )
             for p in space.placeholders
         ],
-        layers=list(space.layers),
+        layers=[layer_doc(layer, out_dir).model_dump(mode="json") for layer in space.layer_spaces],
         build=BuildInfoDoc(
             tool_version=__version__,
             manifest=relative_path(space.manifest.path, out_dir),

@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
     worst = 0
     for manifest in args.manifests:
         result = build(manifest, args.out, jobs=args.jobs, progress=terminal_progress())
-        diagnostics = result.space.diagnostics
+        diagnostics = result.space.all_diagnostics()
         written = ", ".join(str(p) for p in result.written)
         emit(
             args.format,

@@ -20,7 +20,8 @@ def run(args: argparse.Namespace) -> int:
     everything = []
     for manifest in args.manifests:
         space = analyse(manifest, jobs=args.jobs, progress=terminal_progress())
-        everything += space.diagnostics
-        worst = max(worst, exit_code(space.diagnostics, args.strict))
+        found = space.all_diagnostics()
+        everything += found
+        worst = max(worst, exit_code(found, args.strict))
     emit(args.format, everything, f"checked {len(args.manifests)} manifest(s): ")
     return worst

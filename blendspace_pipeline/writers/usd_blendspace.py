@@ -9,11 +9,13 @@ payload-free `references` on the sample prim so a DCC can open the animation dir
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from pxr import Sdf, Tf, Usd, UsdGeom, Vt
 
-from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.document import BlendSpaceDocument, SampleDoc
+from blendspace_pipeline.layers_doc import BetaLayerDoc, parse_layers
 
 NAMESPACE = "blendspace"
 
@@ -51,10 +53,18 @@ def write_usd_blendspace(doc: BlendSpaceDocument, path: Path) -> None:
         _attr(root, f"{prefix}:divisions", Sdf.ValueTypeNames.Int, axis.divisions)
         _attr(root, f"{prefix}:unit", Sdf.ValueTypeNames.String, axis.unit)
     _attr(root, "triangles", Sdf.ValueTypeNames.Int3Array, Vt.Vec3iArray([tuple(t) for t in doc.triangles]))
-    samples = stage.DefinePrim(root.GetPath().AppendChild("Samples"), "Scope")
+    _write_samples(stage, root, doc.samples)
+    _write_placeholders(stage, root, doc)
+    _write_layers(stage, root, doc)
+    text = layer.ExportToString()
+    path.write_text(text, encoding="utf-8")
+
+
+def _write_samples(stage: Usd.Stage, parent: Usd.Prim, sample_docs: Sequence[SampleDoc]) -> None:
+    samples = stage.DefinePrim(parent.GetPath().AppendChild("Samples"), "Scope")
     taken: set[str] = set()
     order = []
-    for sample in doc.samples:
+    for sample in sample_docs:
         prim = stage.DefinePrim(samples.GetPath().AppendChild(_identifier(sample.name, taken)), "Scope")
         order.append(prim.GetName())
         _attr(prim, "name", Sdf.ValueTypeNames.String, sample.name)
@@ -67,9 +77,6 @@ def write_usd_blendspace(doc: BlendSpaceDocument, path: Path) -> None:
             _attr(prim, f"features:{feature}", Sdf.ValueTypeNames.Double, value)
     # Triangle indices refer to samples in this order, whatever order a tool lists children in.
     _attr(samples, "order", Sdf.ValueTypeNames.TokenArray, order)
-    _write_placeholders(stage, root, doc)
-    text = layer.ExportToString()
-    path.write_text(text, encoding="utf-8")
 
 
 def _write_placeholders(stage: Usd.Stage, root: Usd.Prim, doc: BlendSpaceDocument) -> None:
@@ -82,3 +89,40 @@ def _write_placeholders(stage: Usd.Stage, root: Usd.Prim, doc: BlendSpaceDocumen
         _attr(prim, "priority", Sdf.ValueTypeNames.Token, mark.priority)
         _attr(prim, "rule", Sdf.ValueTypeNames.Token, mark.rule)
         _attr(prim, "reason", Sdf.ValueTypeNames.String, mark.reason)
+
+
+def _write_layers(stage: Usd.Stage, root: Usd.Prim, doc: BlendSpaceDocument) -> None:
+    """Beta layers as nested blend spaces (samples + triangles); style layers as a 1D axis."""
+    layers = parse_layers(doc)
+    if not layers:
+        return
+    scope = stage.DefinePrim(root.GetPath().AppendChild("Layers"), "Scope")
+    taken: set[str] = set()
+    for entry in layers:
+        prim = stage.DefinePrim(scope.GetPath().AppendChild(_identifier(entry.name, taken)), "Scope")
+        _attr(prim, "name", Sdf.ValueTypeNames.String, entry.name)
+        _attr(prim, "kind", Sdf.ValueTypeNames.Token, entry.kind)
+        if isinstance(entry, BetaLayerDoc):
+            _attr(prim, "source", Sdf.ValueTypeNames.Asset, Sdf.AssetPath(entry.source))
+            triangles = Vt.Vec3iArray([tuple(t) for t in entry.triangles])
+            _attr(prim, "triangles", Sdf.ValueTypeNames.Int3Array, triangles)
+            _write_samples(stage, prim, entry.samples)
+            continue
+        _attr(prim, "axis:feature", Sdf.ValueTypeNames.Token, entry.axis.feature)
+        _attr(prim, "axis:min", Sdf.ValueTypeNames.Double, entry.axis.min)
+        _attr(prim, "axis:max", Sdf.ValueTypeNames.Double, entry.axis.max)
+        if entry.mask is not None:
+            names = sorted(entry.mask.joints)
+            _attr(prim, "mask:joints", Sdf.ValueTypeNames.StringArray, names)
+            weights = [entry.mask.joints[n] for n in names]
+            _attr(prim, "mask:weights", Sdf.ValueTypeNames.DoubleArray, weights)
+            _attr(prim, "mask:default", Sdf.ValueTypeNames.Double, entry.mask.default)
+        samples = stage.DefinePrim(prim.GetPath().AppendChild("Samples"), "Scope")
+        names_taken: set[str] = set()
+        for sample in entry.samples:
+            child = stage.DefinePrim(
+                samples.GetPath().AppendChild(_identifier(sample.name, names_taken)), "Scope"
+            )
+            _attr(child, "name", Sdf.ValueTypeNames.String, sample.name)
+            _attr(child, "source", Sdf.ValueTypeNames.Asset, Sdf.AssetPath(sample.source))
+            _attr(child, "position", Sdf.ValueTypeNames.Double, sample.position[0])
