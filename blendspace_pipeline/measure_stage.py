@@ -114,7 +114,15 @@ def _named(resolved: ResolvedClipFile, measured: list[tuple[str, Measurement]]) 
                 else f"{resolved.entry.name}/{reader_name.split('/')[-1]}"
             )
         clips.append(
-            MeasuredClip(name, resolved.path, resolved.entry, resolved.line, resolved.column, measurement)
+            MeasuredClip(
+                name,
+                resolved.path,
+                resolved.entry,
+                resolved.line,
+                resolved.column,
+                measurement,
+                extra={"animation": reader_name},
+            )
         )
     return clips
 

@@ -109,15 +109,20 @@ def analyse(
     manifest_path: Path, *, jobs: int = 1, progress: Progress | None = None, with_layers: bool = True
 ) -> BlendSpace:
     """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules."""
-    from blendspace_pipeline.locate_diagnostics import anchor
-    from blendspace_pipeline.rule_engine import run_rules
-
     loaded = load_manifest(manifest_path)
     files = resolve_clip_files(loaded)
     clips = measure_files(loaded, files, jobs=jobs, progress=progress)
     space = assemble(loaded, clips)
     if with_layers:
         space.layer_spaces = analyse_layers(space, jobs=jobs, progress=progress)
+    finish_analysis(space)
+    return space
+
+
+def finish_analysis(space: BlendSpace) -> None:
+    """Run the rules on an assembled space and anchor their findings at manifest lines."""
+    from blendspace_pipeline.locate_diagnostics import anchor
+    from blendspace_pipeline.rule_engine import run_rules
+
     run_rules(space)
     space.diagnostics = anchor(space, space.diagnostics)
-    return space

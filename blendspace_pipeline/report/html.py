@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from html import escape
@@ -58,13 +59,21 @@ def write_html_report(doc: BlendSpaceDocument, path: Path) -> None:
         temporary.write_text(text, encoding="utf-8", newline="\n")
 
 
+def build_time() -> datetime:
+    """Now, or ``SOURCE_DATE_EPOCH`` when set (reproducible builds: byte-identical reports)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    if epoch.isdigit():
+        return datetime.fromtimestamp(int(epoch), UTC)
+    return datetime.now(UTC)
+
+
 def render_html(doc: BlendSpaceDocument, *, written_at: datetime | None = None) -> str:
     scene = build_scene(doc, Layout())
     trajectory = Trajectory(
         measured=document_trajectory_error(doc),
         manual=document_trajectory_error(doc, manual=True) if has_manual_positions(doc) else None,
     )
-    stamp = (written_at or datetime.now(UTC)).strftime("%Y-%m-%d %H:%M:%S UTC")
+    stamp = (written_at or build_time()).strftime("%Y-%m-%d %H:%M:%S UTC")
     body = "".join(
         [
             _summary(doc, scene, trajectory),
