@@ -64,10 +64,17 @@ def from_euler(angles_deg: FloatArray, order: str) -> FloatArray:
 
     ``angles_deg`` has shape (..., len(order)), one column per letter of ``order``.
     """
-    radians = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
-    result = np.broadcast_to(IDENTITY, (*radians.shape[:-1], 4)).copy()
+    half = np.deg2rad(np.asarray(angles_deg, dtype=np.float64)) * 0.5
+    cosines, sines = np.cos(half), np.sin(half)
+    result: FloatArray | None = None
     for column, letter in enumerate(order):
-        result = multiply(result, from_axis_angle(_AXIS[letter.upper()], radians[..., column]))
+        # An axis rotation has one vector component: build it directly (hot path of BVH reading).
+        factor = np.zeros((*half.shape[:-1], 4))
+        factor[..., "XYZ".index(letter.upper())] = sines[..., column]
+        factor[..., 3] = cosines[..., column]
+        result = factor if result is None else multiply(result, factor)
+    if result is None:
+        return np.broadcast_to(IDENTITY, (*half.shape[:-1], 4)).copy()
     return result
 
 
