@@ -47,11 +47,16 @@ def resolve_clip_files(
     entries = loaded.model.clips if entries is None else entries
     matched = [_files_of(loaded, entry, (*key, index)) for index, entry in enumerate(entries)]
     owners = _owners(matched, [_is_glob(loaded, entry) for entry in entries])
+
+    globbed = [_is_glob(loaded, entry) for entry in entries]
     resolved: list[ResolvedClipFile] = []
     for index, files in enumerate(matched):
         line, column = loaded.locate((*key, index))
         for file in files:
-            if owners[_identity(file)] == index:
+            # Explicit entries always count: one long take listed twice with two `range:`s is two
+            # clips (their names must differ). A glob yields a file to any entry that names it.
+            owner = owners[_identity(file)]
+            if owner == index or (not globbed[index] and not globbed[owner]):
                 resolved.append(ResolvedClipFile(file, entries[index], index, line, column))
     return resolved
 

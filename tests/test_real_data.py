@@ -1,0 +1,117 @@
+"""End to end on the real clips in ../shared/data (skipped when that folder is absent).
+
+Expected values come from each folder's SOURCES.md (measured by hand there), not from this tool.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from conftest import SHARED_DATA, shared_data
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.pipeline import analyse
+
+
+def _manifest(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "manifest.yaml"
+    path.write_text(body.replace("@DATA", SHARED_DATA.as_posix()))
+    return path
+
+
+def _build(manifest: Path, out: Path) -> dict[str, object]:
+    assert main(["build", str(manifest), "--out", str(out), "--format", "json", "--no-fix"]) in (0, 1)
+    return json.loads(next(out.glob("*.blendspace.json")).read_text())  # type: ignore[no-any-return]
+
+
+def test_godot_tps_demo_strafe_space(tmp_path: Path) -> None:
+    shared_data("godot-tps-demo", "SOURCES.md")
+    manifest = _manifest(
+        tmp_path,
+        "schema_version: 1\nname: strafe\nclips:\n"
+        "  - path: '@DATA/godot-tps-demo/strafe_*-cycle.tres'\n"
+        "  - path: '@DATA/godot-tps-demo/Idlecombat-cycle.tres'\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}]\n"
+        "axes:\n  x: {feature: lateral_speed, min: -3, max: 3, divisions: 60}\n"
+        "  y: {feature: forward_speed, min: -3, max: 3, divisions: 60}\n",
+    )
+    doc = _build(manifest, tmp_path / "out")
+    samples = {s["name"]: s for s in doc["samples"]}  # type: ignore[attr-defined]
+    # SOURCES.md: 1.866 m in 0.833 s = 2.24 m/s for each strafe; the idle does not move.
+    expected = {
+        "strafe_front-cycle": (0.0, 2.24),
+        "strafe_back-cycle": (0.0, -2.24),
+        # The root track moves strafe_left along -X: the robot's right when it faces +Z (see notes).
+        "strafe_left-cycle": (-2.24, 0.0),
+        "strafe_right-cycle": (2.24, 0.0),
+        "Idlecombat-cycle": (0.0, 0.0),
+    }
+    for name, (x, y) in expected.items():
+        assert samples[name]["features"]["lateral_speed"] == pytest.approx(x, abs=0.02)
+        assert samples[name]["features"]["forward_speed"] == pytest.approx(y, abs=0.02)
+    assert len(doc["triangles"]) == 4  # type: ignore[arg-type]
+    # The Godot export round-trips the layout: same five points, one sign flip on x from the
+    # game's own layout (player.tscn: strafe_left at (1, 0), strafe_right at (-1, 0)).
+    target = tmp_path / "strafe.tres"
+    assert main(["export", str(tmp_path / "out" / "strafe.blendspace.json"), "--engine", "godot", "--out", str(target)]) == 0
+    text = target.read_text()
+    assert text.count("blend_point_") >= 10 and "auto_triangles = false" in text
+
+
+def test_godot_walk_and_run_speeds() -> None:
+    from blendspace_pipeline.detect import RigSettings
+    from blendspace_pipeline.measure import measure
+    from blendspace_pipeline.readers import read_clips
+
+    walk = read_clips(shared_data("godot-tps-demo", "walking_nogun-cycle.tres"))[0]
+    run = read_clips(shared_data("godot-tps-demo", "running_nogun-cycle.tres"))[0]
+    # SOURCES.md: +Z 2.177 m in 1.25 s and 3.317 m in 0.833 s.
+    assert measure(walk, RigSettings()).features["speed"] == pytest.approx(2.177 / 1.25, rel=0.01)
+    assert measure(run, RigSettings()).features["speed"] == pytest.approx(3.317 / 0.8333, rel=0.01)
+
+
+def test_fox_is_in_place_warned_not_crashed(tmp_path: Path) -> None:
+    shared_data("khronos-fox", "Fox.glb")
+    manifest = _manifest(tmp_path, "schema_version: 1\nname: fox\nclips:\n  - path: '@DATA/khronos-fox/Fox.glb'\n")
+    space = analyse(manifest)
+    names = sorted(s.name for s in space.samples)
+    assert names == ["Fox/Run", "Fox/Survey", "Fox/Walk"]
+    in_place = sorted(c for d in space.diagnostics if d.rule == "in-place-clip" for c in d.clips)
+    assert in_place == names
+    assert all(abs(s.clip.measurement.features["speed"]) < 0.05 for s in space.samples)
+    doc = _build(manifest, tmp_path / "out")
+    assert {d["rule"] for d in doc["diagnostics"]} >= {"in-place-clip"}  # type: ignore[attr-defined]
+
+
+def test_cmu_walk_with_range_and_units(tmp_path: Path) -> None:
+    shared_data("cmu", "131_01.bvh")
+    manifest = _manifest(
+        tmp_path,
+        "schema_version: 1\nname: cmu\nskeleton: {units: 0.0564}\nclips:\n"
+        "  - path: '@DATA/cmu/131_01.bvh'\n    name: walk_01\n    range: [2.0, 6.0]\n"
+        "  - path: '@DATA/cmu/131_02.bvh'\n    name: walk_02\n    range: [3.0, 7.0]\n"
+        "  - path: '@DATA/cmu/131_01.bvh'\n    name: whole_01\n",
+    )
+    space = analyse(manifest)
+    by_name = {s.name: s.clip.measurement for s in space.samples}
+    for name in ("walk_01", "walk_02", "whole_01"):
+        m = by_name[name]
+        assert m.meters_per_unit == pytest.approx(0.0564)
+        assert m.fps == pytest.approx(120.0, rel=1e-3)
+        assert 0.2 < m.features["speed"] < 2.0  # a walk, in metres per second
+    assert by_name["walk_01"].features["duration"] == pytest.approx(4.0, abs=0.01)
+    # SOURCES.md, whole take: about 46 units forward (chord) and -12 deg of net turn over 8.27 s;
+    # "a path of about 83 units" sums the raw per-frame hip motion, sway included. Our speed
+    # follows the travel in the character's own frame, so the sway cancels: between the two.
+    whole = by_name["whole_01"].features
+    assert whole["displacement_speed"] * whole["duration"] / 0.0564 == pytest.approx(46, rel=0.05)
+    assert whole["duration"] == pytest.approx(8.27, abs=0.01)
+    assert whole["turn"] == pytest.approx(-12, abs=3)
+    assert 46 < whole["speed"] * whole["duration"] / 0.0564 < 83
+    # Without the override the unit is estimated from the hip height and says so.
+    guessed = analyse(_manifest(tmp_path, "schema_version: 1\nname: c\nclips:\n  - path: '@DATA/cmu/*.bvh'\n"))
+    assert any(d.rule == "units-doubt" for d in guessed.diagnostics)
+    for sample in guessed.samples:
+        assert 0.04 < sample.clip.measurement.meters_per_unit < 0.08
