@@ -68,7 +68,9 @@ def timed(label: str, action: object, baseline: float | None) -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--clips", type=int, default=1000)
     parser.add_argument("--format", choices=("bvh", "usda"), default="bvh")
     parser.add_argument("--jobs", type=int, default=2)
@@ -78,7 +80,9 @@ def main() -> None:
         start = time.perf_counter()
         paths = write_library(root / "clips", args.clips, args.format)
         size = sum(p.stat().st_size for p in paths) / 1e6
-        print(f"wrote {len(paths)} {args.format} clips ({size:.1f} MB) in {time.perf_counter() - start:.1f} s")
+        print(
+            f"wrote {len(paths)} {args.format} clips ({size:.1f} MB) in {time.perf_counter() - start:.1f} s"
+        )
         manifest = root / "manifest.yaml"
         manifest.write_text(
             f"schema_version: 1\nname: big\nclips:\n  - path: clips/*.{args.format}\n"
@@ -86,11 +90,17 @@ def main() -> None:
         )
         os.environ["BLENDSPACE_CACHE_DIR"] = "off"
         baseline = timed(
-            "baseline: read + measure loop", lambda: [measure_file(p, RigSettings(), None) for p in paths], None
+            "baseline: read + measure loop",
+            lambda: [measure_file(p, RigSettings(), None) for p in paths],
+            None,
         )
         os.environ["BLENDSPACE_CACHE_DIR"] = str(root / "cache")
         jobs = ["--jobs", str(args.jobs)]
-        timed(f"check, cold cache, --jobs {args.jobs}", lambda: cli_main(["check", str(manifest), *jobs]), baseline)
+        timed(
+            f"check, cold cache, --jobs {args.jobs}",
+            lambda: cli_main(["check", str(manifest), *jobs]),
+            baseline,
+        )
         timed("check, warm cache", lambda: cli_main(["check", str(manifest), *jobs]), baseline)
         os.environ["BLENDSPACE_CACHE_DIR"] = str(root / "cache2")
         timed(
@@ -98,7 +108,11 @@ def main() -> None:
             lambda: cli_main(["build", str(manifest), "--no-fix", *jobs]),
             baseline,
         )
-        timed("build --no-fix, warm cache", lambda: cli_main(["build", str(manifest), "--no-fix", *jobs]), baseline)
+        timed(
+            "build --no-fix, warm cache",
+            lambda: cli_main(["build", str(manifest), "--no-fix", *jobs]),
+            baseline,
+        )
 
 
 if __name__ == "__main__":

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.fix_loop import FixState, apply_fixes
+from blendspace_pipeline.generated_clips import write_generated_clip
 from blendspace_pipeline.pipeline import BlendSpace, Progress, analyse
 from blendspace_pipeline.to_document import to_document
 
@@ -24,6 +26,7 @@ class BuildResult:
     document: BlendSpaceDocument
     out_dir: Path
     written: list[Path]
+    fixes: FixState
 
 
 def output_dir(space: BlendSpace, out: Path | None) -> Path:
@@ -64,14 +67,23 @@ def _writers() -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None
 
 
 def write_outputs(
-    space: BlendSpace, out_dir: Path, formats: Sequence[str]
+    space: BlendSpace, out_dir: Path, formats: Sequence[str], fixes: FixState | None = None
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
+    generated = fixes.generated if fixes is not None else {}
+    for sample in space.samples:
+        if sample.generated:
+            sample.clip.source = out_dir / "clips" / f"{sample.name}.usda"
     document = to_document(space, out_dir)
     staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
     try:
         staged: list[tuple[Path, Path]] = []
+        in_space = {s.name for s in space.samples}
+        for name in sorted(generated):
+            if name in in_space:
+                for path in write_generated_clip(space, generated[name], staging / "clips"):
+                    staged.append((path, out_dir / "clips" / path.name))
         writers = _writers()
         for name in formats:
             suffix, writer = writers[name]
@@ -79,6 +91,7 @@ def write_outputs(
             writer(document, staging / target.name)
             staged.append((staging / target.name, target))
         for source, target in staged:
+            target.parent.mkdir(exist_ok=True)
             source.replace(target)
         return document, [target for _, target in staged]
     except BaseException:
@@ -90,10 +103,18 @@ def write_outputs(
 
 
 def build(
-    manifest: Path, out: Path | None = None, *, jobs: int = 1, progress: Progress | None = None
+    manifest: Path,
+    out: Path | None = None,
+    *,
+    jobs: int = 1,
+    progress: Progress | None = None,
+    fix: bool = True,
 ) -> BuildResult:
     space = analyse(manifest, jobs=jobs, progress=progress)
+    fixes = FixState()
+    if fix:
+        space, fixes = apply_fixes(space)
     out_dir = output_dir(space, out)
     formats = list(dict.fromkeys(space.manifest.model.output.formats))
-    document, written = write_outputs(space, out_dir, formats)
-    return BuildResult(space=space, document=document, out_dir=out_dir, written=written)
+    document, written = write_outputs(space, out_dir, formats, fixes)
+    return BuildResult(space=space, document=document, out_dir=out_dir, written=written, fixes=fixes)

@@ -19,7 +19,11 @@ GOOD_CLIPS = ("idle", "walk", "turn")
 
 def _good_clips(folder: Path) -> None:
     folder.mkdir(parents=True, exist_ok=True)
-    specs = {"idle": GaitSpec("idle"), "walk": GaitSpec("walk", speed=1.4), "turn": GaitSpec("turn", turn_rate=90.0)}
+    specs = {
+        "idle": GaitSpec("idle"),
+        "walk": GaitSpec("walk", speed=1.4),
+        "turn": GaitSpec("turn", turn_rate=90.0),
+    }
     for name in GOOD_CLIPS:
         write_usd_clip(generate(specs[name]), folder / f"{name}.usda", meters_per_unit=1.0, up_axis="y")
 

@@ -47,7 +47,10 @@ def _write(tmp_path: Path, text: str, name: str = "t.bvh", newline: str = "\n") 
     return path
 
 
-@pytest.mark.parametrize("order", ["Zrotation Xrotation Yrotation", "Xrotation Yrotation Zrotation", "Yrotation Xrotation Zrotation"])
+@pytest.mark.parametrize(
+    "order",
+    ["Zrotation Xrotation Yrotation", "Xrotation Yrotation Zrotation", "Yrotation Xrotation Zrotation"],
+)
 def test_channel_orders_against_a_hand_computed_pose(tmp_path: Path, order: str) -> None:
     angles = "30 45 60"
     clip = read(_write(tmp_path, TWO_JOINTS.format(order=order, a=angles)))[0]
@@ -82,12 +85,36 @@ def test_three_channel_root_position_channels_on_a_child_crlf_and_tabs(tmp_path:
         ("HIERARCHY\nROOT Hips\n{\n  CHANNELS 3 Xrotation Yrotation Wrotation\n}\n", 4, "unknown channel"),
         ("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  SCALE 1\n}\n", 5, "unexpected 'SCALE'"),
         ("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n", 4, "truncated"),
-        ("HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 0\nFrame Time: 0.1\n", 7, "no frames"),
-        ("HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 2\nFrame Time: 0\n1\n2\n", 8, "Frame Time"),
-        ("HIERARCHY\nROOT Hips\n{\n CHANNELS 2 Xrotation Yrotation\n}\nMOTION\nFrames: 2\nFrame Time: 0.1\n1 2\n3\n", 10, "frame 2 has 1"),
-        ("HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n1\n2\n", 10, "says 3 but the file has 2"),
-        ("HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n1\n2\n", 10, "says 1 but the file has 2"),
-        ("HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\nx1\n", 9, "'x1' is not a number"),
+        (
+            "HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 0\nFrame Time: 0.1\n",
+            7,
+            "no frames",
+        ),
+        (
+            "HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 2\nFrame Time: 0\n1\n2\n",
+            8,
+            "Frame Time",
+        ),
+        (
+            "HIERARCHY\nROOT Hips\n{\n CHANNELS 2 Xrotation Yrotation\n}\nMOTION\nFrames: 2\nFrame Time: 0.1\n1 2\n3\n",
+            10,
+            "frame 2 has 1",
+        ),
+        (
+            "HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 3\nFrame Time: 0.1\n1\n2\n",
+            10,
+            "says 3 but the file has 2",
+        ),
+        (
+            "HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n1\n2\n",
+            10,
+            "says 1 but the file has 2",
+        ),
+        (
+            "HIERARCHY\nROOT Hips\n{\n CHANNELS 1 Xrotation\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\nx1\n",
+            9,
+            "'x1' is not a number",
+        ),
         ("hello\n", 1, "expected HIERARCHY"),
     ],
 )
@@ -141,7 +168,9 @@ def test_cmu_template_round_trip_keeps_the_header(tmp_path: Path, name: str) -> 
     out = tmp_path / name
     write_bvh_clip(clip, out, template=source)
     original = source.read_text().replace("\r", "").split("MOTION")[0]
-    assert [line.rstrip() for line in original.splitlines()] == out.read_text().split("MOTION")[0].splitlines()
+    assert [line.rstrip() for line in original.splitlines()] == out.read_text().split("MOTION")[
+        0
+    ].splitlines()
     again = read(out)[0]
     assert np.abs(forward_kinematics(again)[1] - forward_kinematics(clip)[1]).max() < 1e-3
 

@@ -55,7 +55,19 @@ def test_godot_tps_demo_strafe_space(tmp_path: Path) -> None:
     # The Godot export round-trips the layout: same five points, one sign flip on x from the
     # game's own layout (player.tscn: strafe_left at (1, 0), strafe_right at (-1, 0)).
     target = tmp_path / "strafe.tres"
-    assert main(["export", str(tmp_path / "out" / "strafe.blendspace.json"), "--engine", "godot", "--out", str(target)]) == 0
+    assert (
+        main(
+            [
+                "export",
+                str(tmp_path / "out" / "strafe.blendspace.json"),
+                "--engine",
+                "godot",
+                "--out",
+                str(target),
+            ]
+        )
+        == 0
+    )
     text = target.read_text()
     assert text.count("blend_point_") >= 10 and "auto_triangles = false" in text
 
@@ -74,7 +86,9 @@ def test_godot_walk_and_run_speeds() -> None:
 
 def test_fox_is_in_place_warned_not_crashed(tmp_path: Path) -> None:
     shared_data("khronos-fox", "Fox.glb")
-    manifest = _manifest(tmp_path, "schema_version: 1\nname: fox\nclips:\n  - path: '@DATA/khronos-fox/Fox.glb'\n")
+    manifest = _manifest(
+        tmp_path, "schema_version: 1\nname: fox\nclips:\n  - path: '@DATA/khronos-fox/Fox.glb'\n"
+    )
     space = analyse(manifest)
     names = sorted(s.name for s in space.samples)
     assert names == ["Fox/Run", "Fox/Survey", "Fox/Walk"]
@@ -111,7 +125,9 @@ def test_cmu_walk_with_range_and_units(tmp_path: Path) -> None:
     assert whole["turn"] == pytest.approx(-12, abs=3)
     assert 46 < whole["speed"] * whole["duration"] / 0.0564 < 83
     # Without the override the unit is estimated from the hip height and says so.
-    guessed = analyse(_manifest(tmp_path, "schema_version: 1\nname: c\nclips:\n  - path: '@DATA/cmu/*.bvh'\n"))
+    guessed = analyse(
+        _manifest(tmp_path, "schema_version: 1\nname: c\nclips:\n  - path: '@DATA/cmu/*.bvh'\n")
+    )
     assert any(d.rule == "units-doubt" for d in guessed.diagnostics)
     for sample in guessed.samples:
         assert 0.04 < sample.clip.measurement.meters_per_unit < 0.08

@@ -27,14 +27,16 @@ def run(args: argparse.Namespace) -> int:
         )
     worst = 0
     for manifest in args.manifests:
-        result = build(manifest, args.out, jobs=args.jobs, progress=terminal_progress())
+        result = build(manifest, args.out, jobs=args.jobs, progress=terminal_progress(), fix=not args.no_fix)
         diagnostics = result.space.all_diagnostics()
-        written = ", ".join(str(p) for p in result.written)
+        written = ", ".join(str(p) for p in result.written if p.parent == result.out_dir)
+        made = sorted(result.fixes.generated)
+        generated = f", {len(made)} generated ({', '.join(made)})" if made else ""
         emit(
             args.format,
             diagnostics,
             f"{manifest}: built {len(result.space.samples)} samples, "
-            f"{len(result.space.triangles)} triangles -> {written}\n",
+            f"{len(result.space.triangles)} triangles{generated} -> {written}\n",
             extra={"manifest": str(manifest), "outputs": [str(p) for p in result.written]},
         )
         worst = max(worst, exit_code(diagnostics, args.strict))

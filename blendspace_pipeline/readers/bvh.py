@@ -144,7 +144,10 @@ def parse_header(lines: list[str], path: Path) -> BvhHeader:
         elif word == "MOTION":
             if stack or pending is not None:
                 raise ClipReadError(
-                    "MOTION before the hierarchy is closed (missing '}')", path=path, line=number, hint=_REEXPORT
+                    "MOTION before the hierarchy is closed (missing '}')",
+                    path=path,
+                    line=number,
+                    hint=_REEXPORT,
                 )
             _motion_header(lines, index, header, path)
             break

@@ -1,0 +1,134 @@
+"""Mirroring a clip across the character's sagittal plane, in world space.
+
+Left and right joints swap (pairs from their names, or given), and every joint's motion is
+reflected across the vertical plane through the character's initial position and facing. The
+reflection works on world transforms relative to the rest pose, not on local joint axes, so rigs
+whose left and right joint axes are not mirror images of each other (Mixamo, many game rigs)
+mirror correctly: joint j takes its partner k's world deviation from rest, reflected,
+``W'_j = M (W_k B_k^-1) M B_j``, and sits at k's reflected position.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import replace
+
+import numpy as np
+
+from blendspace_pipeline import quaternions as quat
+from blendspace_pipeline.clip import Clip, Skeleton, forward_kinematics
+from blendspace_pipeline.clip_ops.errors import IncompatibleClips
+from blendspace_pipeline.clip_ops.root_motion import decompose, ground_basis
+from blendspace_pipeline.detect import RigSettings
+from blendspace_pipeline.joint_names import split_side
+from blendspace_pipeline.quaternions import FloatArray
+
+
+def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None) -> list[int]:
+    """For every joint, the index of its mirror partner (itself for centre joints)."""
+    names = skeleton.names
+    partner = list(range(len(names)))
+    if overrides:
+        index = {n: i for i, n in enumerate(names)}
+        for left, right in overrides.items():
+            if left in index and right in index:
+                partner[index[left]], partner[index[right]] = index[right], index[left]
+        return partner
+    by_base: dict[str, dict[str, int]] = {}
+    for i, name in enumerate(names):
+        side, base = split_side(name)
+        if side:
+            by_base.setdefault(base, {}).setdefault(side, i)
+    unpaired = []
+    for sides in by_base.values():
+        if set(sides) == {"L", "R"}:
+            partner[sides["L"]], partner[sides["R"]] = sides["R"], sides["L"]
+        else:
+            unpaired += [names[i] for i in sides.values()]
+    if unpaired:
+        raise IncompatibleClips(
+            f"no mirror partner for joint(s) {', '.join(sorted(unpaired)[:6])}; "
+            "set `skeleton.mirror: {left: TOKEN, right: TOKEN}` in the manifest"
+        )
+    return partner
+
+
+def _reflect_rotation(q: FloatArray, normal: FloatArray) -> FloatArray:
+    """M R M for the reflection M across the plane with unit ``normal``: (v, w) -> (-(M v), w)."""
+    v = q[..., :3]
+    reflected = v - 2.0 * (v @ normal)[..., None] * normal
+    return np.concatenate([-reflected, q[..., 3:]], axis=-1)
+
+
+def bind_rotations(clip: Clip, settings: RigSettings, up: FloatArray) -> FloatArray:
+    """World rest rotations, expressed in the rest pose's own facing frame.
+
+    The rest pose may face anywhere (a root joint turned 90 degrees, a Z-up export); only the
+    joints' orientation relative to the character matters for telling a rig's left axes from its
+    right ones.
+    """
+    skeleton = clip.skeleton
+    rest = replace(
+        clip,
+        rotations=skeleton.rest_rotations[None].copy(),
+        translations=skeleton.rest_translations[None].copy(),
+    )
+    rotations, _ = forward_kinematics(rest)
+    heading = float(decompose(rest, settings).heading[0])
+    unturn = quat.conjugate(quat.from_axis_angle(up, heading))
+    return quat.multiply(unturn[None], rotations[0])
+
+
+def mirror_clip(
+    clip: Clip, *, settings: RigSettings, name: str, pairs: Mapping[str, str] | None = None
+) -> Clip:
+    skeleton = clip.skeleton
+    partner = mirror_pairs(skeleton, pairs)
+    world_rot, world_pos = forward_kinematics(clip)
+    motion = decompose(clip, settings)
+    basis = ground_basis(motion.up_axis)
+    h0 = float(motion.heading[0])
+    normal = -np.sin(h0) * basis[0] + np.cos(h0) * basis[1]  # the character's left at frame 0
+    centre = motion.trajectory_points()[0]
+    # The bind pose turned to face where the character faces at frame 0, so its own sagittal
+    # plane is the plane of the reflection.
+    bind_rot = quat.multiply(
+        quat.from_axis_angle(motion.up, h0)[None], bind_rotations(clip, settings, motion.up)
+    )
+
+    source_rot = world_rot[:, partner]
+    deviation = quat.multiply(source_rot, quat.conjugate(bind_rot[partner])[None])
+    mirrored_rot = quat.normalize(quat.multiply(_reflect_rotation(deviation, normal), bind_rot[None]))
+    source_pos = world_pos[:, partner] - centre
+    mirrored_pos = source_pos - 2.0 * (source_pos @ normal)[..., None] * normal + centre
+
+    rotations = np.empty_like(clip.rotations)
+    translations = np.empty_like(clip.translations)
+    animated = np.abs(clip.translations - skeleton.rest_translations[None]).max(axis=0).max(axis=1) > 1e-6 * (
+        1.0 + np.abs(skeleton.rest_translations).max()
+    )
+    for joint, parent in enumerate(skeleton.parents):
+        if parent < 0 or not skeleton.has_hierarchy:
+            rotations[:, joint] = mirrored_rot[:, joint]
+            translations[:, joint] = mirrored_pos[:, joint]
+            continue
+        inverse_parent = quat.conjugate(mirrored_rot[:, parent])
+        rotations[:, joint] = quat.normalize(quat.multiply(inverse_parent, mirrored_rot[:, joint]))
+        if animated[partner[joint]] or animated[joint]:
+            offset = mirrored_pos[:, joint] - mirrored_pos[:, parent]
+            translations[:, joint] = quat.rotate(inverse_parent, offset)
+        else:
+            # Bone lengths stay the joint's own: a mocap rig's sides differ by millimetres, and
+            # formats without per-frame translation (BVH rotation-only joints) need the rest offset.
+            translations[:, joint] = skeleton.rest_translations[joint]
+    return Clip(
+        name=name,
+        source=clip.source.with_name(f"{name}.generated"),
+        skeleton=skeleton,
+        rotations=rotations,
+        translations=translations,
+        fps=clip.fps,
+        meters_per_unit=clip.meters_per_unit,
+        up_axis=clip.up_axis,
+        notes=[f"mirror of {clip.name} across the sagittal plane (left/right joints swapped)"],
+    )

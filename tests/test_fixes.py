@@ -1,0 +1,173 @@
+"""The fix loop end to end: generated clips are real, land where they were placed, and the loop is
+deterministic and idempotent. Ground truth comes from procedural clips."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.detect import RigSettings
+from blendspace_pipeline.fix_loop import mirrored_name
+from blendspace_pipeline.measure import measure
+from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+# A first-draft set: left turns only, so mirroring and axis clips have work to do.
+DRAFT = (
+    GaitSpec("idle", duration=2.0),
+    GaitSpec("run_fwd", speed=4.0, duration=0.8, stride_length=2.6),
+    GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1),
+    GaitSpec("walk_turn_left", speed=1.4, turn_rate=50.0, duration=1.5),
+    GaitSpec("walk_turn_right", speed=1.4, turn_rate=-50.0, duration=1.5),
+    GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
+)
+AXES = "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 100}\n  y: {feature: speed, min: -3, max: 6, divisions: 90}\n"
+RANGES = (360.0, 9.0)
+
+
+def _project(tmp_path: Path, specs: tuple[GaitSpec, ...] = DRAFT, extra: str = "") -> Path:
+    folder = tmp_path / "clips"
+    folder.mkdir(parents=True, exist_ok=True)
+    for spec in specs:
+        write_usd_clip(generate(spec), folder / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.usda\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}]\n" + AXES + extra
+    )
+    return manifest
+
+
+def _build(manifest: Path, out: Path, *args: str) -> dict[str, object]:
+    code = main(["build", str(manifest), "--out", str(out), "--format", "json", *args])
+    assert code in (0, 1)
+    return json.loads((out / "loco.blendspace.json").read_text())  # type: ignore[no-any-return]
+
+
+def _tree(folder: Path) -> dict[str, str]:
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def _crossing_edges(doc: dict[str, object], tau: float = 5.0) -> list[tuple[str, str]]:
+    """Independent check: triangle edges crossing x = 0 or y = 0 with both ends beyond tau."""
+    samples = doc["samples"]  # type: ignore[index]
+    normal = [((s["position"][0] + 180) / 3.6, (s["position"][1] + 3) / 0.09) for s in samples]  # type: ignore[index]
+    lines = (50.0, 3 / 0.09)
+    found = []
+    for tri in doc["triangles"]:  # type: ignore[attr-defined]
+        for i in range(3):
+            a, b = tri[i], tri[(i + 1) % 3]
+            for k in (0, 1):
+                da, db = normal[a][k] - lines[k], normal[b][k] - lines[k]
+                if da * db < 0 and min(abs(da), abs(db)) > tau:
+                    found.append((samples[a]["name"], samples[b]["name"]))  # type: ignore[index]
+    return found
+
+
+def test_mirrored_names() -> None:
+    assert mirrored_name("walk_turn_left") == "walk_turn_right"
+    assert mirrored_name("TurnRight90") == "TurnLeft90"
+    assert mirrored_name("strafe_l") == "strafe_r"
+    assert mirrored_name("idle") == "idle_mirror"
+
+
+def test_fixes_fill_the_set_and_no_edge_crosses_a_main_axis(tmp_path: Path) -> None:
+    manifest = _project(tmp_path)
+    before = _tree(tmp_path / "clips")
+    doc = _build(manifest, tmp_path / "out")
+    generated = {s["name"]: s for s in doc["samples"] if s["generated"]}  # type: ignore[attr-defined]
+    assert "turn_in_place_right" in generated
+    assert generated["turn_in_place_right"]["fix"] == "missing-opposite"
+    assert generated["turn_in_place_right"]["features"]["turn_rate"] == pytest.approx(-90.0, abs=0.02 * 360)
+    assert _crossing_edges(doc) == []
+    assert not [d for d in doc["diagnostics"] if d["rule"] == "crossing-axis"]  # type: ignore[attr-defined]
+    # Every generated clip is on disk, as UsdSkel, and referenced by the JSON.
+    for name, sample in generated.items():
+        path = (tmp_path / "out" / sample["source"]).resolve()
+        assert path == (tmp_path / "out" / "clips" / f"{name}.usda").resolve() and path.is_file()
+    assert _tree(tmp_path / "clips") == before  # sources untouched
+
+
+def test_a_generated_clip_measures_where_it_was_placed_on_its_own(tmp_path: Path) -> None:
+    doc = _build(_project(tmp_path), tmp_path / "out")
+    made = [s for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    assert any(s["fix"] == "crossing-axis" for s in made), "expected an interpolated axis clip"
+    for sample in made:
+        clip = read_clips(tmp_path / "out" / sample["source"])[0]
+        features = measure(clip, RigSettings()).features
+        for axis, feature, span in ((0, "turn_rate", RANGES[0]), (1, "speed", RANGES[1])):
+            assert abs(features[feature] - sample["position"][axis]) <= 0.02 * span, (
+                sample["name"],
+                feature,
+                features[feature],
+                sample["position"],
+            )
+
+
+def test_no_fix_and_check_generate_nothing(tmp_path: Path) -> None:
+    manifest = _project(tmp_path)
+    doc = _build(manifest, tmp_path / "out", "--no-fix")
+    assert not [s for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    assert not (tmp_path / "out" / "clips").exists()
+    listing = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["check", str(manifest)]) == 1  # crossing-axis errors are reported, not fixed
+    assert sorted(p.name for p in tmp_path.iterdir()) == listing
+
+
+def test_builds_are_byte_identical_and_idempotent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    manifest = _project(tmp_path)
+    _build(manifest, tmp_path / "a")
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    _build(manifest, tmp_path / "b")
+    assert _tree(tmp_path / "a") == _tree(tmp_path / "b")
+
+    # Feeding the generated clips back as sources makes nothing new.
+    shutil.copytree(tmp_path / "a" / "clips", tmp_path / "clips", dirs_exist_ok=True)
+    again = _build(manifest, tmp_path / "c")
+    assert not [s for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]
+
+
+def test_too_close_keep_representative_and_merge(tmp_path: Path) -> None:
+    specs = (*DRAFT, GaitSpec("walk_fwd", speed=1.4), GaitSpec("walk_relaxed", speed=1.5, stride_length=1.4))
+    keep = _build(
+        _project(tmp_path / "k", specs, "fixes: {too_close: keep-representative}\n"), tmp_path / "k1"
+    )
+    names = {s["name"] for s in keep["samples"]}  # type: ignore[attr-defined]
+    assert ("walk_fwd" in names) != ("walk_relaxed" in names)
+    assert any(d["rule"] == "fix-removed" for d in keep["diagnostics"])  # type: ignore[attr-defined]
+
+    merged = _build(_project(tmp_path / "m", specs, "fixes: {too_close: merge}\n"), tmp_path / "m1")
+    by_name = {s["name"]: s for s in merged["samples"]}  # type: ignore[attr-defined]
+    assert "walk_fwd" not in by_name and "walk_relaxed" not in by_name
+    merge = next(s for s in by_name.values() if s["fix"] == "too-close")
+    assert merge["features"]["speed"] == pytest.approx(1.45, abs=0.02 * RANGES[1])
+
+
+def test_straighten_replaces_a_slightly_turning_clip(tmp_path: Path) -> None:
+    specs = (*DRAFT, GaitSpec("walk_fwd", speed=1.4, turn_rate=4.0))
+    doc = _build(_project(tmp_path, specs, "fixes: {straighten: true}\n"), tmp_path / "out")
+    straight = next(s for s in doc["samples"] if s["fix"] == "misalignment")  # type: ignore[attr-defined]
+    assert abs(straight["features"]["turn_rate"]) < 0.5
+    assert straight["features"]["speed"] == pytest.approx(1.4, rel=0.02)
+    assert straight["position"][0] == 0.0
+
+
+def test_generated_clip_plays_the_same_motion_in_usd(tmp_path: Path) -> None:
+    doc = _build(_project(tmp_path), tmp_path / "out")
+    sample = next(s for s in doc["samples"] if s["name"] == "turn_in_place_right")  # type: ignore[attr-defined]
+    clip = read_clips(tmp_path / "out" / sample["source"])[0]
+    source = generate(GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0))
+    assert clip.frame_count == source.frame_count and clip.fps == source.fps
+    assert np.isfinite(clip.rotations).all()
