@@ -10,6 +10,7 @@ mirror correctly: joint j takes its partner k's world deviation from rest, refle
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import replace
 
@@ -23,28 +24,77 @@ from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.joint_names import split_side
 from blendspace_pipeline.quaternions import FloatArray
 
+_TRAILING_INDEX = re.compile(r"_\d+$")
+
+
+# Each pattern's group "side" is the token that names the side; it is swapped, nothing else.
+_SIDE_PATTERNS = (
+    re.compile(r"(?P<side>Left|Right)"),
+    re.compile(r"(?P<side>left|right)"),
+    re.compile(r"(?P<side>LEFT|RIGHT)"),
+    # Single letters only as a separated token (thigh.L, L_Thigh, hand_r) or a camel prefix (LHand).
+    re.compile(r"(?:^|(?<=[._\-\s:|]))(?P<side>[LRlr])(?=$|[._\-\s:|\d])"),
+    re.compile(r"^(?:[a-z]+_)?(?P<side>[LR])(?=[A-Z])"),
+)
+_OPPOSITE = {
+    "Left": "Right", "Right": "Left", "left": "right", "right": "left", "LEFT": "RIGHT", "RIGHT": "LEFT",
+    "L": "R", "R": "L", "l": "r", "r": "l",
+}  # fmt: skip
+
+
+def _swapped(name: str) -> list[str]:
+    """Candidate partner names: the side token swapped, most specific convention first."""
+    found = []
+    for pattern in _SIDE_PATTERNS:
+        match = pattern.search(name)
+        if match:
+            start, end = match.span("side")
+            found.append(name[:start] + _OPPOSITE[match.group("side")] + name[end:])
+    return found
+
 
 def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None) -> list[int]:
-    """For every joint, the index of its mirror partner (itself for centre joints)."""
+    """For every joint, the index of its mirror partner (itself for centre joints).
+
+    ``overrides`` maps joint names to partners (from `skeleton.mirror` tokens); otherwise the
+    partner is the joint whose name has the side token swapped (`b_LeftLeg01_015` pairs with
+    `b_RightLeg01_019`'s sibling only if the names match once swapped, so index suffixes that
+    differ by side are matched on the name without its trailing index).
+    """
     names = skeleton.names
+    index = {n: i for i, n in enumerate(names)}
     partner = list(range(len(names)))
     if overrides:
-        index = {n: i for i, n in enumerate(names)}
         for left, right in overrides.items():
             if left in index and right in index:
                 partner[index[left]], partner[index[right]] = index[right], index[left]
         return partner
-    by_base: dict[str, dict[str, int]] = {}
+    stripped: dict[str, list[int]] = {}
     for i, name in enumerate(names):
-        side, base = split_side(name)
-        if side:
-            by_base.setdefault(base, {}).setdefault(side, i)
+        stripped.setdefault(_TRAILING_INDEX.sub("", name), []).append(i)
     unpaired = []
-    for sides in by_base.values():
-        if set(sides) == {"L", "R"}:
-            partner[sides["L"]], partner[sides["R"]] = sides["R"], sides["L"]
+    for i, name in enumerate(names):
+        side, _ = split_side(name)
+        if not side:
+            continue
+        match = next((index[c] for c in _swapped(name) if c in index and c != name), None)
+        if match is None:
+            # Exporters number joints in hierarchy order (b_LeftLeg01_015 / b_RightLeg01_019).
+            base = _TRAILING_INDEX.sub("", name)
+            candidates = [j for c in _swapped(base) for j in stripped.get(c, []) if c != base]
+            match = candidates[0] if len(candidates) == 1 else None
+        if match is None:
+            unpaired.append(name)
         else:
-            unpaired += [names[i] for i in sides.values()]
+            partner[i] = match
+    # A joint with no side in its name under a sided parent (CMU's `lhand` under `LeftWrist`)
+    # takes the same place under the parent's partner: the hierarchy is symmetric even when the
+    # names are not.
+    for i, parent in enumerate(skeleton.parents):
+        if partner[i] == i and parent >= 0 and partner[parent] != parent:
+            mine, theirs = skeleton.children(parent), skeleton.children(partner[parent])
+            if len(mine) == len(theirs):
+                partner[i] = theirs[mine.index(i)]
     if unpaired:
         raise IncompatibleClips(
             f"no mirror partner for joint(s) {', '.join(sorted(unpaired)[:6])}; "
