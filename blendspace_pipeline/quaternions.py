@@ -6,6 +6,8 @@ so readers convert once at the edge. All functions broadcast over leading axes.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -87,7 +89,11 @@ def to_euler(q: FloatArray, order: str) -> FloatArray:
     from scipy.spatial.transform import Rotation
 
     flat = q.reshape(-1, 4)
-    angles = Rotation.from_quat(flat).as_euler(order.upper(), degrees=True)
+    with warnings.catch_warnings():
+        # At gimbal lock scipy sets the third angle to 0 and folds it into the first: the
+        # rotation is still exact, which is all a writer needs.
+        warnings.filterwarnings("ignore", message="Gimbal lock detected")
+        angles = Rotation.from_quat(flat).as_euler(order.upper(), degrees=True)
     return np.asarray(angles.reshape((*q.shape[:-1], len(order))), dtype=np.float64)
 
 

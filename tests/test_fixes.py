@@ -171,3 +171,28 @@ def test_generated_clip_plays_the_same_motion_in_usd(tmp_path: Path) -> None:
     source = generate(GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0))
     assert clip.frame_count == source.frame_count and clip.fps == source.fps
     assert np.isfinite(clip.rotations).all()
+
+
+def test_bvh_sources_get_bvh_generated_clips_with_the_same_motion(tmp_path: Path) -> None:
+    from blendspace_pipeline.clip import forward_kinematics
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    for spec in DRAFT:
+        write_bvh_clip(generate(spec), folder / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nskeleton: {units: m}\nclips:\n  - path: clips/*.bvh\n" + AXES
+    )
+    doc = _build(manifest, tmp_path / "out")
+    made = [s["name"] for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    assert made
+    for name in made:
+        usd = read_clips(tmp_path / "out" / "clips" / f"{name}.usda")[0]
+        bvh_path = tmp_path / "out" / "clips" / f"{name}.bvh"
+        bvh = read_clips(bvh_path)[0]
+        # Same hierarchy and channel layout as the sources, and the same motion in both files.
+        source_header = (folder / "idle.bvh").read_text().split("MOTION")[0]
+        assert bvh_path.read_text().split("MOTION")[0] == source_header
+        assert np.abs(forward_kinematics(usd)[1] - forward_kinematics(bvh)[1]).max() < 1e-3
