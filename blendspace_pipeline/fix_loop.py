@@ -159,6 +159,7 @@ class _Fixer:
         axis_index = 0 if data["axis"] == "x" else 1
         point = tuple(float(v) for v in data["point"])  # type: ignore[attr-defined]
         if self._occupied(space, point):
+            self._skip(diagnostic, "a sample already sits within too_close of the crossing point")
             return False
         pair = _bracketing_axis_clips(space, axis_index, point)
         if pair is None:
