@@ -87,30 +87,26 @@ def _beta(space: BlendSpace, layer: BetaLayer, index: int, jobs: int, progress: 
     loaded = space.manifest
     path = loaded.path.parent / Path(layer.manifest.replace("\\", "/"))
     line, column = loaded.locate(("layers", index, "manifest"))
+
+    def fail(message: str, hint: str) -> ManifestError:
+        return ManifestError(
+            f"beta layer {layer.name!r}: {message}", path=loaded.path, line=line, column=column, hint=hint
+        )
+
     if not path.is_file():
-        raise ManifestError(
-            f"beta layer {layer.name!r}: manifest {layer.manifest} not found (looked at {path})",
-            path=loaded.path,
-            line=line,
-            column=column,
-            hint="the path is relative to this manifest",
+        raise fail(
+            f"manifest {layer.manifest} not found (looked at {path})", "the path is relative to this manifest"
         )
     if path.resolve() == loaded.path.resolve():
-        raise ManifestError(
-            f"beta layer {layer.name!r} points at this manifest itself",
-            path=loaded.path,
-            line=line,
-            column=column,
-            hint="a beta layer is a second manifest (e.g. lateral.yaml) with its own clips",
+        raise fail(
+            "it points at this manifest itself",
+            "a beta layer is a second manifest (e.g. lateral.yaml) with its own clips",
         )
     sub = analyse(path, jobs=jobs, progress=progress, with_layers=False)
     if sub.manifest.model.layers:
-        raise ManifestError(
-            f"beta layer {layer.name!r}: {layer.manifest} has layers of its own; layers do not nest",
-            path=loaded.path,
-            line=line,
-            column=column,
-            hint=f"remove `layers:` from {layer.manifest}, or add its layers to this manifest",
+        raise fail(
+            f"{layer.manifest} has layers of its own; layers do not nest",
+            f"remove `layers:` from {layer.manifest}, or add its layers to this manifest",
         )
     match = [(a.feature, a.minimum, a.maximum) for a in sub.axes] == [
         (a.feature, a.minimum, a.maximum) for a in space.axes

@@ -171,14 +171,11 @@ def mirror_clip(
             # Bone lengths stay the joint's own: a mocap rig's sides differ by millimetres, and
             # formats without per-frame translation (BVH rotation-only joints) need the rest offset.
             translations[:, joint] = skeleton.rest_translations[joint]
-    return Clip(
+    return replace(
+        clip,
         name=name,
         source=clip.source.with_name(f"{name}.generated"),
-        skeleton=skeleton,
         rotations=rotations,
         translations=translations,
-        fps=clip.fps,
-        meters_per_unit=clip.meters_per_unit,
-        up_axis=clip.up_axis,
         notes=[f"mirror of {clip.name} across the sagittal plane (left/right joints swapped)"],
     )
