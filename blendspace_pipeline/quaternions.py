@@ -46,8 +46,16 @@ def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
     u = q[..., :3]
     w = q[..., 3:4]
-    t = 2.0 * np.cross(u, v)
-    return np.asarray(v + w * t + np.cross(u, t), dtype=np.float64)
+    t = 2.0 * _cross(u, v)
+    return np.asarray(v + w * t + _cross(u, t), dtype=np.float64)
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    # Written out: np.cross spends most of its time moving axes around on the small arrays
+    # forward kinematics passes per joint.
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
 
 
 def from_axis_angle(axis: FloatArray, angle: FloatArray | float) -> FloatArray:
