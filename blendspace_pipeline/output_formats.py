@@ -106,14 +106,20 @@ def _escape_github(text: str) -> str:
     return text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
 
 
+def _escape_github_property(text: str) -> str:
+    """Property values also escape `:` and `,`, which separate the command's parts (actions/toolkit)."""
+    return _escape_github(text).replace(":", "%3A").replace(",", "%2C")
+
+
 def as_github(diagnostics: Sequence[Diagnostic]) -> str:
     """GitHub Actions workflow commands (`::error file=…,line=…::message`)."""
     kinds = {"error": "error", "warning": "warning", "info": "notice"}
     lines = []
     for d in diagnostics:
-        props = [f"title={d.rule}"]
+        props = [f"title={_escape_github_property(d.rule)}"]
         if d.path:
-            props = [f"file={d.path}", f"line={d.line or 1}", f"col={d.column or 1}", *props]
+            path = _escape_github_property(d.path)
+            props = [f"file={path}", f"line={d.line or 1}", f"col={d.column or 1}", *props]
         message = d.message + (f"\nhint: {d.hint}" if d.hint else "")
         lines.append(f"::{kinds[d.severity]} {','.join(props)}::{_escape_github(message)}")
     return "\n".join(lines) + ("\n" if lines else "")

@@ -103,12 +103,17 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
         return
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module
+    # `check` writes nothing: no __pycache__ folder may appear beside a studio's rule files.
+    writes_bytecode = sys.dont_write_bytecode
+    sys.dont_write_bytecode = True
     try:
         spec.loader.exec_module(module)
     except Exception as error:  # a broken plugin is a diagnostic, never a crash
         sys.modules.pop(module_name, None)
         loaded.problems.append(_import_failure(origin, error))
         return
+    finally:
+        sys.dont_write_bytecode = writes_bytecode
     loaded.add_module(module, origin)
 
 

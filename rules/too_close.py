@@ -49,9 +49,13 @@ class TooClose(Rule):
             cx = sum(space.samples[i].position[0] for i in members) / len(members)
             cy = sum(space.samples[i].position[1] for i in members) / len(members)
             centre_n = space.to_normalised((cx, cy))
+            # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
             keep = min(
                 members,
-                key=lambda i: (distance(space.samples[i].normalised, centre_n), space.samples[i].name),
+                key=lambda i: (
+                    round(distance(space.samples[i].normalised, centre_n), 9),
+                    space.samples[i].name,
+                ),
             )
             yield self.report(
                 f"{len(names)} clips lie closer than {tau:g} (normalised): {', '.join(names)}",

@@ -14,6 +14,7 @@ from blendspace_pipeline.clip import Clip, Skeleton, forward_kinematics
 from blendspace_pipeline.clip_ops import (
     IncompatibleClips,
     blend_clips,
+    detect_cycle,
     mirror_clip,
     mirror_pairs,
     straighten_clip,
@@ -84,8 +85,25 @@ def test_blend_measures_the_weighted_features(a: GaitSpec, b: GaitSpec, weights:
         else:
             want = weights[0] * a.turn_rate + weights[1] * b.turn_rate
         assert abs(got[feature] - want) <= 0.02 * span, (feature, got[feature], want)
-    assert got["duration"] == pytest.approx(weights[0] * a.duration + weights[1] * b.duration, abs=1 / 30)
+    assert_blend_duration(blended, [generate(a), generate(b)], weights)
     assert blended.notes and "blend of" in blended.notes[0]
+
+
+def assert_blend_duration(blended: Clip, clips: list[Clip], weights: tuple[float, float]) -> None:
+    """Clips without a gait blend over the weighted duration; walking clips over a whole number of
+    the weighted stride period, the number nearest the weighted duration (so the result loops)."""
+    weighted = sum(w * clip.duration for w, clip in zip(weights, clips, strict=True))
+    cycles = [(w, detect_cycle(clip, SETTINGS)) for w, clip in zip(weights, clips, strict=True)]
+    walking = [(w, cycle.period) for w, cycle in cycles if cycle is not None and w > 0.0]
+    frame = 1.0 / blended.fps
+    if not walking:
+        assert blended.duration == pytest.approx(weighted, abs=frame)
+        return
+    period = sum(w * p for w, p in walking) / sum(w for w, _ in walking)
+    strides = blended.duration / period
+    assert strides >= 1.0 - frame / period
+    assert abs(strides - round(strides)) * period <= frame, (blended.duration, period)
+    assert abs(blended.duration - weighted) <= period / 2 + frame, (blended.duration, weighted)
 
 
 def test_blend_refuses_different_skeletons() -> None:

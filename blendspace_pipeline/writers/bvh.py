@@ -1,13 +1,18 @@
 """A clip as BVH text: used for generated clips when the set's sources are BVH.
 
-With a ``template`` (the source BVH) the output copies its hierarchy exactly: joint names,
-OFFSETs, End Sites and each joint's channel list and order, so the new clip drops into the same
-pipeline as its source. Without one, roots get six channels and other joints
-``Zrotation Xrotation Yrotation``. Numbers use a fixed format, so the text is deterministic.
+With a ``template`` (the source BVH) the output copies its hierarchy: joint names, End Sites and
+each joint's channel list and order, so the new clip drops into the same pipeline as its source.
+When the clip's bone lengths are the template's, the HIERARCHY text is copied verbatim; when they
+differ (a mirrored asymmetric rig, a blend of two actors), the OFFSETs are the clip's, because a
+joint without position channels is placed by its OFFSET alone and the template's would move it.
+Without a template, roots and any other joint whose translation changes get six channels
+(position first) and the rest ``Zrotation Xrotation Yrotation``. Numbers use a fixed ``%.6f``
+format and ``-0.000000`` never appears, so equal clips give equal bytes.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 import uuid
 from pathlib import Path
@@ -16,20 +21,29 @@ import numpy as np
 
 from blendspace_pipeline import quaternions as quat
 from blendspace_pipeline.clip import Clip
-from blendspace_pipeline.readers.bvh import BvhHeader, BvhJoint, parse_header
+from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.readers.bvh import BvhHeader, BvhJoint, read_header
 
-_DEFAULT_ROOT = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
-_DEFAULT_JOINT = ("Zrotation", "Xrotation", "Yrotation")
+_SIX = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+_ROTATION_ONLY = ("Zrotation", "Xrotation", "Yrotation")
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
 
 def write_bvh_clip(clip: Clip, path: Path, *, template: Path | None = None) -> None:
-    """Write ``clip`` to ``path`` atomically; raises ValueError if it does not fit ``template``."""
+    """Write ``clip`` to ``path`` atomically.
+
+    Raises ValueError when the clip cannot be written faithfully: its joints are not the
+    template's, a joint moves but has no position channels in the template, or a value is NaN.
+    """
+    if clip.skeleton.joint_count == 0:
+        raise ValueError(f"clip {clip.name!r} has no joints")
+    if not (np.isfinite(clip.rotations).all() and np.isfinite(clip.translations).all()):
+        raise ValueError(f"clip {clip.name!r} has NaN or infinite values")
     if template is not None:
-        header, hierarchy = _template(template, clip)
+        header, verbatim = _template(template, clip)
     else:
-        header = _default_header(clip)
-        hierarchy = _hierarchy(header)
+        header, verbatim = _default_header(clip), None
+    hierarchy = _fit_offsets(clip, header, verbatim)
     text = hierarchy + _motion(clip, header)
     temporary = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
     try:
@@ -40,28 +54,59 @@ def write_bvh_clip(clip: Clip, path: Path, *, template: Path | None = None) -> N
 
 
 def _template(template: Path, clip: Clip) -> tuple[BvhHeader, str]:
-    """The template's parsed header and its HIERARCHY text, copied verbatim (LF line ends)."""
-    lines = template.read_text(encoding="utf-8", errors="replace").splitlines()
-    header = parse_header(lines, template)
+    """The template's parsed header and its HIERARCHY text (trailing spaces and CRs dropped)."""
+    header = read_header(template)
     names = tuple(j.name for j in header.joints)
     parents = tuple(j.parent for j in header.joints)
     if names != clip.skeleton.names or parents != clip.skeleton.parents:
         raise ValueError(f"clip {clip.name!r} does not have the joints of its BVH template {template}")
-    motion = next(i for i, line in enumerate(lines) if line.strip().upper() == "MOTION")
-    return header, "\n".join(line.rstrip() for line in lines[:motion]) + "\n"
+    with template.open(encoding="utf-8", errors="replace", newline="\n") as stream:
+        lines = [line.rstrip() for line in itertools.islice(stream, header.motion_line - 1)]
+    return header, "\n".join(lines) + "\n"
 
 
 def _default_header(clip: Clip) -> BvhHeader:
     skeleton = clip.skeleton
     header = BvhHeader()
     for index, (name, parent) in enumerate(zip(skeleton.names, skeleton.parents, strict=True)):
-        offset = tuple(float(v) for v in skeleton.rest_translations[index])
-        channels = _DEFAULT_ROOT if parent < 0 else _DEFAULT_JOINT
+        offset = skeleton.rest_translations[index]
+        channels = _SIX if parent < 0 or _moves(clip.translations[:, index]) else _ROTATION_ONLY
         leaf = not skeleton.children(index)
         header.joints.append(
-            BvhJoint(name, parent, offset, channels, 0, (0.0, 0.0, 0.0) if leaf else None)  # type: ignore[arg-type]
+            BvhJoint(name, parent, _triple(offset), channels, 0, (0.0, 0.0, 0.0) if leaf else None)
         )
     return header
+
+
+def _moves(track: FloatArray) -> bool:
+    """Whether a joint's (F, 3) translation track changes more than float noise."""
+    tolerance = 1e-5 * (1.0 + float(np.abs(track).max()))
+    return bool(np.abs(track - track[0]).max() > tolerance)
+
+
+def _triple(values: FloatArray) -> tuple[float, float, float]:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def _fit_offsets(clip: Clip, header: BvhHeader, verbatim: str | None) -> str:
+    """The HIERARCHY text, with each rotation-only joint's OFFSET set to the clip's translation.
+
+    Returns ``verbatim`` (the template's own text) when no OFFSET had to change.
+    """
+    changed = False
+    for index, joint in enumerate(header.joints):
+        if any(c.lower().endswith("position") for c in joint.channels):
+            continue  # position channels replace the OFFSET: the template's stays
+        track = clip.translations[:, index]
+        if _moves(track):
+            raise ValueError(
+                f"joint {joint.name!r} of clip {clip.name!r} moves but has no position channels in BVH"
+            )
+        wanted = track[0]
+        if np.abs(wanted - np.array(joint.offset)).max() > 1e-6 * (1.0 + float(np.abs(wanted).max())):
+            joint.offset = _triple(wanted)
+            changed = True
+    return verbatim if verbatim is not None and not changed else _hierarchy(header)
 
 
 def _number(value: float) -> str:
@@ -101,22 +146,43 @@ def _motion(clip: Clip, header: BvhHeader) -> str:
     columns = []
     for index, joint in enumerate(header.joints):
         order = "".join(c[0].upper() for c in joint.channels if c.lower().endswith("rotation"))
-        angles = quat.to_euler(clip.rotations[:, index], order) if order else None
+        angles = _angles(clip, index, joint.name, order)
         rotation_column = 0
         for channel in joint.channels:
             if channel.lower().endswith("position"):
                 columns.append(clip.translations[:, index, _AXIS[channel[0].lower()]])
             else:
-                assert angles is not None
                 columns.append(angles[:, rotation_column])
                 rotation_column += 1
-        if not any(c.lower().endswith("position") for c in joint.channels):
-            rest = clip.skeleton.rest_translations[index]
-            if not np.allclose(clip.translations[:, index], rest, atol=1e-5 * (1 + np.abs(rest).max())):
-                raise ValueError(
-                    f"joint {joint.name!r} of clip {clip.name!r} moves but has no position channels in BVH"
-                )
-    values = np.stack(columns, axis=1) if columns else np.zeros((clip.frame_count, 0))
-    values = np.where(np.abs(values) < 5e-7, 0.0, values)
-    body = "\n".join(" ".join(f"{v:.6f}" for v in row) for row in values)
-    return f"MOTION\nFrames: {clip.frame_count}\nFrame Time: {1.0 / clip.fps:.8f}\n{body}\n"
+    if not columns:
+        raise ValueError(f"the BVH layout for clip {clip.name!r} has no channels")
+    frames = clip.frame_count
+    values = np.stack(columns, axis=1)
+    # |v| <= 5e-7 would print as "-0.000000" when negative: write an honest zero instead.
+    values = np.where(np.abs(values) <= 5e-7, 0.0, values)
+    # One %-format over all numbers runs in C; f-strings per value cost seconds on long takes.
+    row = " ".join(["%.6f"] * values.shape[1])
+    body = "\n".join([row] * frames) % tuple(values.ravel().tolist())
+    return f"MOTION\nFrames: {frames}\nFrame Time: {1.0 / clip.fps:.8f}\n{body}\n"
+
+
+def _angles(clip: Clip, index: int, name: str, order: str) -> FloatArray:
+    """(F, len(order)) Euler angles of joint ``index``; ValueError if ``order`` cannot express them.
+
+    A layout with fewer than three rotation channels (``Zrotation Xrotation`` on a hinge, none on
+    a fixed joint) is decomposed with the missing axes appended, which must then come out zero.
+    """
+    rotations = clip.rotations[:, index]
+    missing = "".join(axis for axis in "XYZ" if axis not in order)[: max(0, 3 - len(order))]
+    if not order:
+        residual = np.degrees(2.0 * np.arccos(np.clip(np.abs(rotations[:, 3]), 0.0, 1.0)))
+        angles = np.zeros((clip.frame_count, 0))
+    else:
+        full = quat.to_euler(rotations, order + missing)
+        angles, residual = full[:, : len(order)], np.abs(full[:, len(order) :])
+    if residual.size and residual.max() > 1e-3:
+        raise ValueError(
+            f"joint {name!r} of clip {clip.name!r} rotates about an axis its BVH channels "
+            f"({order or 'none'}) do not have"
+        )
+    return angles

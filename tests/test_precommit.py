@@ -1,0 +1,220 @@
+"""The `blendspace-check` pre-commit hook, run for real with `pre-commit try-repo`.
+
+`try-repo` clones the hook repository, installs it into a fresh virtualenv with pip (language:
+python), and runs the hook on a studio's asset repository. The hook repository here is a
+committed snapshot of this working tree made in a temporary folder. That way the test covers
+exactly the code being changed, and this checkout's git state is never touched. Installing
+needs the package index for the dependencies. When the index cannot be reached, or the install
+takes longer than `TIMEOUT` seconds, the try-repo tests are skipped with the reason. The hook's
+entry command is also run directly, the way pre-commit would run it, and that needs no network.
+A try-repo run takes about 15 s on the development machine, almost all of it the pip install.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+from ruamel.yaml import YAML
+
+from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+REPO = Path(__file__).resolve().parents[1]
+HOOK_ID = "blendspace-check"
+TIMEOUT = 300  # seconds for one try-repo run (virtualenv + pip install + hook)
+# pip's messages when the package index is out of reach (not when the package is broken).
+OFFLINE = (
+    "Failed to establish a new connection",
+    "Temporary failure in name resolution",
+    "Network is unreachable",
+    "NewConnectionError",
+    "ProxyError",
+    "No matching distribution found",
+)
+
+pytestmark = pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")
+
+SPECS = {
+    "idle": GaitSpec("idle", duration=1.0),
+    "walk_fwd": GaitSpec("walk_fwd", speed=1.4, duration=1.0),
+    "walk_left": GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
+    "walk_right": GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
+    "tip_left": GaitSpec("tip_left", turn_rate=90.0, duration=1.0),
+    "tip_right": GaitSpec("tip_right", turn_rate=-90.0, duration=1.0),
+    "walk_bwd": GaitSpec("walk_bwd", speed=1.1, direction=180.0, duration=1.0),
+}
+GOOD = list(SPECS)  # warnings and infos only
+BAD = ["idle", "walk_left", "walk_right"]  # the walks' edge crosses turn_rate = 0: an error
+
+
+def git(*args: str, cwd: Path) -> str:
+    """Run git with a fixed identity, so commits work on machines without a git config."""
+    done = subprocess.run(
+        [
+            "git",
+            "-c", "user.name=blendspace tests",
+            "-c", "user.email=tests@blendspace.invalid",
+            "-c", "commit.gpgsign=false",
+            "-c", "init.defaultBranch=main",
+            *args,
+        ],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        check=True,
+    )  # fmt: skip
+    return done.stdout
+
+
+@pytest.fixture(scope="module")
+def hook_repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """This working tree (tracked and new files, not ignored ones), committed in a new repository."""
+    listing = subprocess.run(
+        ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        cwd=REPO,
+        capture_output=True,
+        check=False,
+    )
+    if listing.returncode != 0:
+        pytest.skip(f"{REPO} is not a git checkout: {listing.stderr.decode(errors='replace').strip()}")
+    target = tmp_path_factory.mktemp("hook-repo")
+    for name in filter(None, listing.stdout.decode().split("\0")):
+        source = REPO / name
+        if source.is_file():  # a file deleted in the working tree stays listed until staged
+            (target / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, target / name)
+    git("init", "-q", cwd=target)
+    git("add", "-A", cwd=target)
+    git("commit", "-q", "-m", "working tree snapshot", cwd=target)
+    return target
+
+
+def asset_repo(root: Path, clips: list[str]) -> Path:
+    """A studio's asset repository: clips, a manifest and a YAML file that is not a manifest."""
+    root.mkdir(parents=True)
+    (root / "clips").mkdir()
+    for name in clips:
+        path = root / "clips" / f"{name}.usda"
+        write_usd_clip(generate(SPECS[name], source=path), path, meters_per_unit=1.0, up_axis="y")
+    entries = "".join(f"  - path: clips/{name}.usda\n" for name in clips)
+    (root / "locomotion.manifest.yaml").write_text(
+        f"schema_version: 1\nname: locomotion\nclips:\n{entries}", encoding="utf-8"
+    )
+    # The hook's `files:` pattern must not hand this to `blendspace check` (it would exit 2).
+    (root / "ci.yaml").write_text("stages: [lint, test]\n", encoding="utf-8")
+    git("init", "-q", cwd=root)
+    git("add", "-A", cwd=root)
+    return root
+
+
+def try_repo(hook: Path, assets: Path, home: Path) -> tuple[subprocess.CompletedProcess[str], float]:
+    env = {**os.environ, "PRE_COMMIT_HOME": str(home), "PRE_COMMIT_COLOR": "never"}
+    command = [sys.executable, "-m", "pre_commit", "try-repo", str(hook), HOOK_ID, "--all-files", "--verbose"]
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(
+            command, cwd=assets, env=env, capture_output=True, text=True, timeout=TIMEOUT, check=False
+        )
+    except subprocess.TimeoutExpired:
+        pytest.skip(f"pre-commit try-repo took longer than {TIMEOUT} s (slow package index?)")
+    seconds = time.perf_counter() - start
+    print(f"pre-commit try-repo {HOOK_ID}: {seconds:.1f} s")
+    log = home / "pre-commit.log"
+    details = log.read_text(encoding="utf-8", errors="replace") if log.exists() else ""
+    if done.returncode == 3 and any(marker in details + done.stdout for marker in OFFLINE):
+        pytest.skip(
+            f"pre-commit could not install the hook: the package index is out of reach\n{details[-2000:]}"
+        )
+    assert "An unexpected error has occurred" not in done.stdout, done.stdout + details
+    return done, seconds
+
+
+def test_try_repo_passes_a_good_manifest(hook_repo: Path, tmp_path: Path) -> None:
+    assets = asset_repo(tmp_path / "assets", GOOD)
+    before = git("status", "--porcelain", "--untracked-files=all", cwd=assets)
+    done, _ = try_repo(hook_repo, assets, tmp_path / "pre-commit-home")
+    output = done.stdout + done.stderr
+    assert done.returncode == 0, output
+    assert re.search(r"^blendspace check\.+Passed$", done.stdout, flags=re.M), output
+    assert "checked 1 manifest(s): 0 errors" in output  # the hook ran on the manifest alone
+    assert "ci.yaml" not in output
+    # `check` wrote nothing into the repository.
+    assert git("status", "--porcelain", "--untracked-files=all", cwd=assets) == before
+
+
+def test_try_repo_fails_on_an_error_diagnostic(hook_repo: Path, tmp_path: Path) -> None:
+    assets = asset_repo(tmp_path / "assets", BAD)
+    done, _ = try_repo(hook_repo, assets, tmp_path / "pre-commit-home")
+    output = done.stdout + done.stderr
+    assert done.returncode == 1, output
+    assert re.search(r"^blendspace check\.+Failed$", done.stdout, flags=re.M), output
+    assert re.search(
+        r"^locomotion\.manifest\.yaml:5:5: error crossing-axis: edge walk_left - walk_right crosses",
+        output,
+        flags=re.M,
+    ), output
+
+
+# -- the hook definition and its entry command, without pre-commit ---------------------------------
+
+
+def hook_definition() -> dict[str, Any]:
+    hooks = YAML(typ="safe").load((REPO / ".pre-commit-hooks.yaml").read_text(encoding="utf-8"))
+    [hook] = [h for h in hooks if h["id"] == HOOK_ID]
+    return dict(hook)
+
+
+def test_hook_definition() -> None:
+    hook = hook_definition()
+    assert hook["language"] == "python" and hook["entry"] == "blendspace check"
+    assert hook.get("pass_filenames", True) and hook["require_serial"]
+    files = re.compile(hook["files"])
+    for name in (
+        "locomotion.manifest.yaml",
+        "anim/walk.blendspace.yml",
+        "manifest.yaml",
+        "a/b/manifest_v2.yaml",
+    ):
+        assert files.search(name), name
+    for name in ("clips/walk.usda", "ci.yaml", ".github/workflows/build.yml", "manifest.yaml.bak"):
+        assert not files.search(name), name
+
+
+def entry_command() -> list[str]:
+    """The hook's entry as pre-commit runs it: the `blendspace` console script of the install."""
+    program, *args = hook_definition()["entry"].split()
+    script = shutil.which(
+        program, path=os.pathsep.join([str(Path(sys.executable).parent), os.environ["PATH"]])
+    )
+    return [script, *args] if script else [sys.executable, "-m", "blendspace_pipeline", *args]
+
+
+def run_like_pre_commit(assets: Path) -> subprocess.CompletedProcess[str]:
+    """The entry with the tracked files that `files:` selects appended, as pre-commit passes them."""
+    files = re.compile(hook_definition()["files"])
+    tracked = git("ls-files", cwd=assets).split()
+    chosen = [name for name in tracked if files.search(name)]
+    assert chosen == ["locomotion.manifest.yaml"]
+    return subprocess.run(
+        [*entry_command(), *chosen], cwd=assets, capture_output=True, text=True, timeout=120, check=False
+    )
+
+
+def test_entry_command_on_a_good_manifest(tmp_path: Path) -> None:
+    done = run_like_pre_commit(asset_repo(tmp_path / "assets", GOOD))
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "checked 1 manifest(s): 0 errors" in done.stdout
+
+
+def test_entry_command_on_a_bad_manifest(tmp_path: Path) -> None:
+    done = run_like_pre_commit(asset_repo(tmp_path / "assets", BAD))
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "locomotion.manifest.yaml:5:5: error crossing-axis: edge walk_left - walk_right" in done.stdout
