@@ -147,6 +147,16 @@ def test_three_channel_root_position_channels_on_a_child_crlf_and_tabs(tmp_path:
     assert read_header(path).joints[1].end_site == (1.0, 0.0, 0.0)  # kept for writers
 
 
+def test_classic_mac_line_endings_read_like_unix_ones(tmp_path: Path) -> None:
+    text = TWO_JOINTS.format(order="Zrotation Xrotation Yrotation", a="30 45 60", offset="0 10 0")
+    unix = read(_write(tmp_path, text))[0]
+    mac = tmp_path / "mac.bvh"
+    mac.write_bytes(text.replace("\n", "\r").encode())
+    clip = read(mac)[0]
+    assert clip.frame_count == unix.frame_count and clip.skeleton.names == unix.skeleton.names
+    assert np.array_equal(clip.rotations, unix.rotations)
+
+
 def test_mixed_layout_agrees_with_bvhio(tmp_path: Path) -> None:
     bvhio = pytest.importorskip("bvhio")
     path = _write(tmp_path, MIXED)

@@ -99,6 +99,9 @@ def _text(path: Path) -> str:
         raise ClipReadError(f"cannot read the file: {error.strerror or error}", path=path) from None
     if b"\x00" in raw[:4096]:
         raise ClipReadError("not a text BVH file (binary data)", path=path, line=1, hint=_REEXPORT)
+    if b"\r" in raw and b"\n" not in raw:
+        # Classic Mac line endings (lone CR), still written by some old exporters.
+        raw = raw.replace(b"\r", b"\n")
     return raw.decode("utf-8", errors="replace")
 
 
