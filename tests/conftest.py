@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from blendspace_pipeline.procedural import GaitSpec
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 
@@ -22,3 +24,18 @@ def shared_data(*parts: str) -> Path:
 def _isolated_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
     monkeypatch.delenv("BLENDSPACE_RULE_PATH", raising=False)
+
+
+def tidy_set() -> dict[str, GaitSpec]:
+    """A set with no error-severity findings: idle, straight and turning walks, turns in place and
+    a backward walk (clip name -> the spec it is generated from)."""
+    specs = [
+        GaitSpec("idle", duration=1.0),
+        GaitSpec("walk_fwd", speed=1.4, duration=1.0),
+        GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
+        GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
+        GaitSpec("tip_left", turn_rate=90.0, duration=1.0),
+        GaitSpec("tip_right", turn_rate=-90.0, duration=1.0),
+        GaitSpec("walk_bwd", speed=1.1, direction=180.0, duration=1.0),
+    ]
+    return {spec.name: spec for spec in specs}

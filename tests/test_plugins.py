@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import tidy_set
 
 from blendspace_pipeline.cli import build_parser, main
 from blendspace_pipeline.procedural import GaitSpec, generate
@@ -33,16 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 # A set without error-severity findings: idle, straight and turning walks, turns in place, a
 # backward walk, and a run that drifts 5 deg/s left (one misalignment warning).
-SPECS = {
-    "idle": GaitSpec("idle", duration=1.0),
-    "walk_fwd": GaitSpec("walk_fwd", speed=1.4, duration=1.0),
-    "walk_left": GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
-    "walk_right": GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
-    "tip_left": GaitSpec("tip_left", turn_rate=90.0, duration=1.0),
-    "tip_right": GaitSpec("tip_right", turn_rate=-90.0, duration=1.0),
-    "walk_bwd": GaitSpec("walk_bwd", speed=1.1, direction=180.0, duration=1.0),
-    "run_drift": GaitSpec("run_drift", speed=3.0, turn_rate=5.0, duration=1.0),
-}
+SPECS = {**tidy_set(), "run_drift": GaitSpec("run_drift", speed=3.0, turn_rate=5.0, duration=1.0)}
 ENGINE_SLUGS = set(ENGINE_CODES)
 
 

@@ -22,9 +22,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import tidy_set
 from ruamel.yaml import YAML
 
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.procedural import generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 REPO = Path(__file__).resolve().parents[1]
@@ -42,15 +43,7 @@ OFFLINE = (
 
 pytestmark = pytest.mark.skipif(shutil.which("git") is None, reason="git is not installed")
 
-SPECS = {
-    "idle": GaitSpec("idle", duration=1.0),
-    "walk_fwd": GaitSpec("walk_fwd", speed=1.4, duration=1.0),
-    "walk_left": GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
-    "walk_right": GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
-    "tip_left": GaitSpec("tip_left", turn_rate=90.0, duration=1.0),
-    "tip_right": GaitSpec("tip_right", turn_rate=-90.0, duration=1.0),
-    "walk_bwd": GaitSpec("walk_bwd", speed=1.1, direction=180.0, duration=1.0),
-}
+SPECS = tidy_set()
 GOOD = list(SPECS)  # warnings and infos only
 BAD = ["idle", "walk_left", "walk_right"]  # the walks' edge crosses turn_rate = 0: an error
 
