@@ -190,6 +190,12 @@ class _Fixer:
                 if name != keep:
                     self.state.removed[name] = f"too-close: {keep} kept as the representative"
             return True
+        done = self._earlier_merge(space, members)
+        if done is not None:  # a fixed build's merged clip fed back as a source: keep it
+            for name in members:
+                if name != done:
+                    self.state.removed[name] = f"too-close: {done} already merges it"
+            return True
         name = self._unique(_safe("merged_" + "_".join(sorted(members))))
         clips = [self._clip(n) for n in sorted(members)]
         clip = blend_clips(clips, [1.0 / len(clips)] * len(clips), name=name, settings=self.settings)
@@ -199,8 +205,14 @@ class _Fixer:
 
     def _straighten(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         source = diagnostic.clips[0]
-        if source in self.state.removed or source in self.state.generated:
+        # Generated clips are straightened too (a merge of a turning and a straight walk turns a
+        # little); otherwise feeding them back as sources would straighten them a build later.
+        if source in self.state.removed:
             return False
+        on_axis = self._straight_twin(space, diagnostic)
+        if on_axis is not None:  # a fixed build's straightened clip fed back as a source
+            self.state.removed[source] = f"misalignment: {on_axis} already sits on the axis in its place"
+            return True
         name = self._unique(_safe(f"{source}_straight"))
         clip = straighten_clip(self._clip(source), settings=self.settings, name=name)
         self.state.removed[source] = f"misalignment: replaced by {name}"
@@ -236,11 +248,43 @@ class _Fixer:
     def _occupied(self, space: BlendSpace, point: Sequence[float]) -> bool:
         """Whether a sample already sits within `too_close` of ``point`` (normalised)."""
         tau = self.model.thresholds.too_close
-        x_axis, y_axis = space.axes
-        px = (point[0] - x_axis.minimum) / (x_axis.maximum - x_axis.minimum) * 100
-        py = (point[1] - y_axis.minimum) / (y_axis.maximum - y_axis.minimum) * 100
-        normalised = space.normalised_positions()
-        return any(((n[0] - px) ** 2 + (n[1] - py) ** 2) ** 0.5 < tau for n in normalised)
+        target = _normalise(space, point)
+        return any(_distance(_normalise(space, s.position), target) < tau for s in space.samples)
+
+    # Idempotence: building again with a fixed build's generated clips among the sources must add
+    # nothing. Mirror and axis clips cure their own diagnostic; a merge or a straightened clip
+    # does not (the originals are back beside it), so these two fixes first look for a sample
+    # that already is their result: one that sits, within `SAME_PLACE`, where the fix would put
+    # its clip. Files do not say they were generated (BVH cannot), so place is the evidence.
+    SAME_PLACE = 1.5  # normalised units: snapping (half a cell) plus a blend's small error
+
+    def _earlier_merge(self, space: BlendSpace, members: list[str]) -> str | None:
+        """A member that sits at the centre of the others: the merge of an earlier build."""
+        if len(members) < 3:
+            return None
+        at = {s.name: _normalise(space, s.measured) for s in space.samples}
+        for name in sorted(members):
+            others = [at[m] for m in members if m != name]
+            centre = (sum(p[0] for p in others) / len(others), sum(p[1] for p in others) / len(others))
+            if _distance(at[name], centre) < self.SAME_PLACE:
+                return name
+        return None
+
+    def _straight_twin(self, space: BlendSpace, diagnostic: Diagnostic) -> str | None:
+        """Another sample on the axis where straightening ``diagnostic``'s clip would put it."""
+        source = diagnostic.clips[0]
+        axis = 0 if (diagnostic.fix_data or {}).get("axis", "x") == "x" else 1
+        by_name = {s.name: s for s in space.samples}
+        if source not in by_name:
+            return None
+        target = list(by_name[source].measured)
+        target[axis] = 0.0
+        for sample in space.samples:
+            if sample.name == source or sample.name in self.state.removed or sample.position[axis] != 0.0:
+                continue
+            if _distance(_normalise(space, sample.measured), _normalise(space, target)) < self.SAME_PLACE:
+                return sample.name
+        return None
 
     def _unique(self, name: str) -> str:
         taken = set(self.sources) | set(self.state.generated)
@@ -311,6 +355,19 @@ class _Fixer:
                 extra={"generated": True},
             )
         return generated.measured
+
+
+def _normalise(space: BlendSpace, point: Sequence[float]) -> tuple[float, float]:
+    """``point`` in axis units -> the 0..100 normalised space the thresholds are measured in."""
+    x_axis, y_axis = space.axes
+    return (
+        (point[0] - x_axis.minimum) / (x_axis.maximum - x_axis.minimum) * 100.0,
+        (point[1] - y_axis.minimum) / (y_axis.maximum - y_axis.minimum) * 100.0,
+    )
+
+
+def _distance(a: Sequence[float], b: Sequence[float]) -> float:
+    return float(((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5)
 
 
 def _mark(sample: Sample, rule: str) -> None:

@@ -139,6 +139,32 @@ def test_builds_are_byte_identical_and_idempotent(tmp_path: Path, monkeypatch: p
     assert not [s for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]
 
 
+@pytest.mark.parametrize(
+    ("specs", "fixes"),
+    [
+        # walk_fwd and walk_relaxed are too close: merged (and then there is nothing to straighten).
+        (
+            (*DRAFT, GaitSpec("walk_fwd", speed=1.4, turn_rate=4.0), GaitSpec("walk_relaxed", speed=1.5)),
+            "fixes: {too_close: merge, straighten: true}\n",
+        ),
+        # walk_fwd turns 4 deg/s: straightened.
+        ((*DRAFT, GaitSpec("walk_fwd", speed=1.4, turn_rate=4.0)), "fixes: {straighten: true}\n"),
+    ],
+    ids=["merge", "straighten"],
+)
+def test_merge_and_straighten_are_idempotent(tmp_path: Path, specs: tuple[GaitSpec, ...], fixes: str) -> None:
+    """A merged or straightened clip fed back beside its originals is recognised, not made again."""
+    manifest = _project(tmp_path, specs, fixes)
+    first = _build(manifest, tmp_path / "a")
+    made = {s["name"] for s in first["samples"] if s["generated"]}  # type: ignore[attr-defined]
+    assert made, "the set is meant to need fixes"
+    shutil.copytree(tmp_path / "a" / "clips", tmp_path / "clips", dirs_exist_ok=True)
+    again = _build(manifest, tmp_path / "c")
+    assert not [s for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    names = {s["name"] for s in again["samples"]}  # type: ignore[attr-defined]
+    assert names == {s["name"] for s in first["samples"]}  # type: ignore[attr-defined]
+
+
 def test_too_close_keep_representative_and_merge(tmp_path: Path) -> None:
     specs = (*DRAFT, GaitSpec("walk_fwd", speed=1.4), GaitSpec("walk_relaxed", speed=1.5, stride_length=1.4))
     keep = _build(
