@@ -16,6 +16,7 @@ from pathlib import Path
 from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.generated_clips import write_generated_clip
+from blendspace_pipeline.layers import BetaSpace
 from blendspace_pipeline.pipeline import BlendSpace, Progress, analyse
 from blendspace_pipeline.to_document import to_document
 
@@ -40,7 +41,19 @@ def _write_json(doc: BlendSpaceDocument, path: Path) -> None:
     path.write_text(doc.model_dump_json(indent=2) + "\n", encoding="utf-8")
 
 
-def _writers() -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None]]]:
+def input_files(space: BlendSpace) -> list[Path]:
+    """The files a build reads: its manifest, the clips, and those of its layers."""
+    files = [space.manifest.path]
+    files += [s.clip.source for s in space.samples if not s.generated]
+    for layer in space.layer_spaces:
+        if isinstance(layer, BetaSpace):
+            files += input_files(layer.space)
+        else:
+            files += [clip.source for clip in layer.clips]
+    return files
+
+
+def _writers(space: BlendSpace) -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None]]]:
     """format -> (file suffix, writer). Heavy writers import only when used."""
 
     def usd(doc: BlendSpaceDocument, path: Path) -> None:
@@ -51,7 +64,7 @@ def _writers() -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None
     def html(doc: BlendSpaceDocument, path: Path) -> None:
         from blendspace_pipeline.report import write_html_report
 
-        write_html_report(doc, path)
+        write_html_report(doc, path, input_files(space))
 
     def png(doc: BlendSpaceDocument, path: Path) -> None:
         from blendspace_pipeline.report import write_png
@@ -84,7 +97,7 @@ def write_outputs(
             if name in in_space:
                 for path in write_generated_clip(space, generated[name], staging / "clips"):
                     staged.append((path, out_dir / "clips" / path.name))
-        writers = _writers()
+        writers = _writers(space)
         for name in formats:
             suffix, writer = writers[name]
             target = out_dir / f"{space.name}{suffix}"

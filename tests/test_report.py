@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -341,3 +342,18 @@ def test_degenerate_spaces_still_render(tmp_path: Path) -> None:
     inside = Delaunay(corners).find_simplex(grid) >= 0
     assert build_scene(outside).coverage == pytest.approx(100.0 * inside.mean(), abs=0.5)
     assert build_scene(shifted).zero_y is None  # speed 0 is off this axis: no main axis to draw
+
+
+def test_the_report_time_is_reproducible(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from blendspace_pipeline.report.html import build_stamp
+
+    old, new = tmp_path / "old.bvh", tmp_path / "new.yaml"
+    for path, when in ((old, 1_600_000_000), (new, 1_700_000_000)):
+        path.write_text("x")
+        os.utime(path, (when, when))
+    monkeypatch.delenv("SOURCE_DATE_EPOCH", raising=False)
+    assert build_stamp([old, new, tmp_path / "gone.bvh"]) == "2023-11-14 22:13:20 UTC (newest input file)"
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")
+    assert build_stamp([old, new]) == "1970-01-01 00:00:00 UTC (SOURCE_DATE_EPOCH)"
+    monkeypatch.delenv("SOURCE_DATE_EPOCH")
+    assert build_stamp([]).endswith("UTC (build time)")

@@ -6,6 +6,7 @@ The entry points import their modules on call, so writing the HTML never loads O
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from blendspace_pipeline.document import BlendSpaceDocument
@@ -13,11 +14,12 @@ from blendspace_pipeline.document import BlendSpaceDocument
 __all__ = ["write_html_report", "write_png"]
 
 
-def write_html_report(doc: BlendSpaceDocument, path: Path) -> None:
-    """Write the self-contained interactive report (inline CSS, JS and SVG) atomically."""
+def write_html_report(doc: BlendSpaceDocument, path: Path, inputs: Sequence[Path] = ()) -> None:
+    """Write the self-contained interactive report (inline CSS, JS and SVG) atomically; its
+    time is that of the newest of ``inputs`` (see `html.build_stamp`)."""
     from blendspace_pipeline.report.html import write_html_report as write
 
-    write(doc, path)
+    write(doc, path, inputs)
 
 
 def write_png(doc: BlendSpaceDocument, path: Path) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from html import escape
@@ -52,28 +53,39 @@ class Trajectory:
         return scale_maximum(self.measured.max_distance, *extra)
 
 
-def write_html_report(doc: BlendSpaceDocument, path: Path) -> None:
+def write_html_report(doc: BlendSpaceDocument, path: Path, inputs: Sequence[Path] = ()) -> None:
     """Write the report atomically: a temporary file in the same folder, then a rename."""
-    text = render_html(doc)
+    text = render_html(doc, stamp=build_stamp(inputs))
     with atomic_path(Path(path)) as temporary:
         temporary.write_text(text, encoding="utf-8", newline="\n")
 
 
-def build_time() -> datetime:
-    """Now, or ``SOURCE_DATE_EPOCH`` when set (reproducible builds: byte-identical reports)."""
+def build_stamp(inputs: Sequence[Path] = ()) -> str:
+    """The report's one clock, chosen so that building twice gives byte-identical folders.
+
+    ``SOURCE_DATE_EPOCH`` (the reproducible-builds convention) wins; otherwise the newest
+    modification time of the build's inputs (manifest and clips: it changes exactly when the
+    report's content may); the wall clock only when there are no inputs to date.
+    """
     epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
     if epoch.isdigit():
-        return datetime.fromtimestamp(int(epoch), UTC)
-    return datetime.now(UTC)
+        when, what = datetime.fromtimestamp(int(epoch), UTC), "SOURCE_DATE_EPOCH"
+    else:
+        times = [p.stat().st_mtime for p in inputs if p.is_file()]
+        if times:
+            when, what = datetime.fromtimestamp(int(max(times)), UTC), "newest input file"
+        else:
+            when, what = datetime.now(UTC), "build time"
+    return f"{when:%Y-%m-%d %H:%M:%S} UTC ({what})"
 
 
-def render_html(doc: BlendSpaceDocument, *, written_at: datetime | None = None) -> str:
+def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
     scene = build_scene(doc, Layout())
     trajectory = Trajectory(
         measured=document_trajectory_error(doc),
         manual=document_trajectory_error(doc, manual=True) if has_manual_positions(doc) else None,
     )
-    stamp = (written_at or build_time()).strftime("%Y-%m-%d %H:%M:%S UTC")
+    stamp = stamp or build_stamp()
     body = "".join(
         [
             _summary(doc, scene, trajectory),

@@ -149,7 +149,7 @@ def _clip_row(index: int, sample: SampleDoc, features: list[str]) -> str:
 
 def build_table(doc: BlendSpaceDocument, written_at: str) -> str:
     x, y = doc.axes
-    rows: list[tuple[str, str]] = [("blend space", e(doc.name)), ("written", e(written_at))]
+    rows: list[tuple[str, str]] = [("blend space", e(doc.name)), ("dated", e(written_at))]
     for axis in (x, y):
         rows.append(
             (
