@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.generated_clips import write_generated_clip
 from blendspace_pipeline.layers import BetaSpace
@@ -81,6 +82,22 @@ def _writers(space: BlendSpace) -> dict[str, tuple[str, Callable[[BlendSpaceDocu
 
 def write_outputs(
     space: BlendSpace, out_dir: Path, formats: Sequence[str], fixes: FixState | None = None
+) -> tuple[BlendSpaceDocument, list[Path]]:
+    """Write every output, or none: a file system refusal (the folder is a file, no permission,
+    disk full) is bad input, exit 2, and leaves nothing behind."""
+    try:
+        return _write_outputs(space, out_dir, formats, fixes)
+    except OSError as error:
+        where = error.filename or out_dir
+        raise InputError(
+            f"cannot write the outputs: {error.strerror or error} ({where})",
+            path=space.manifest.path,
+            hint="point --out (or output.dir in the manifest) at a folder you can write to",
+        ) from None
+
+
+def _write_outputs(
+    space: BlendSpace, out_dir: Path, formats: Sequence[str], fixes: FixState | None
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)

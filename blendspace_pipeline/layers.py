@@ -62,7 +62,18 @@ def style_axis(axes: tuple[Axis, Axis]) -> Axis:
 def analyse_layers(space: BlendSpace, *, jobs: int = 1, progress: Progress | None = None) -> list[Layer]:
     loaded = space.manifest
     layers: list[Layer] = []
+    seen: dict[str, int] = {}
     for index, layer in enumerate(loaded.model.layers):
+        if layer.name in seen:  # `eval --layer NAME=VALUE` and the USD prims need one layer a name
+            line, column = loaded.locate(("layers", index, "name"))
+            raise ManifestError(
+                f"layers: the name {layer.name!r} is already used by layer {seen[layer.name] + 1}",
+                path=loaded.path,
+                line=line,
+                column=column,
+                hint="give every layer its own name",
+            )
+        seen[layer.name] = index
         if isinstance(layer, StyleLayer):
             layers.append(_style(space, layer, index, jobs, progress))
         elif isinstance(layer, BetaLayer):

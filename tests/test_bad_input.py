@@ -106,6 +106,15 @@ def truncated_bvh(tmp: Path) -> tuple[Path, str]:
     return _manifest(tmp, HEADER + "clips:\n  - path: clips/cut.bvh\n"), "cut.bvh"
 
 
+def duplicate_layer_names(tmp: Path) -> tuple[Path, str]:
+    body = (
+        HEADER + "clips:\n  - path: clips/*.usda\nlayers:\n"
+        "  - {name: limp, kind: style, clips: [clips/walk.usda]}\n"
+        "  - {name: limp, kind: style, clips: [clips/turn.usda]}\n"
+    )
+    return _manifest(tmp, body), ":7:"
+
+
 CASES: list[Callable[[Path], tuple[Path, str]]] = [
     unknown_key,
     wrong_type,
@@ -119,6 +128,7 @@ CASES: list[Callable[[Path], tuple[Path, str]]] = [
     zero_frames_bvh,
     garbage_bvh,
     truncated_bvh,
+    duplicate_layer_names,
 ]
 
 
@@ -143,3 +153,20 @@ def test_bad_input_exits_2_with_a_location_and_no_traceback(
     assert "hint:" in result.stderr
     assert not (tmp_path / "build").exists()
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def test_an_output_folder_that_is_a_file_exits_2_and_leaves_it_alone(tmp_path: Path) -> None:
+    _good_clips(tmp_path / "clips")
+    manifest = _manifest(tmp_path, HEADER + "clips:\n  - path: clips/*.usda\n")
+    blocker = tmp_path / "out"
+    blocker.write_text("not a folder")
+    result = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "build", str(manifest), "--out", str(blocker)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "Traceback" not in result.stderr
+    assert "cannot write the outputs" in result.stderr and "hint:" in result.stderr
+    assert blocker.read_text() == "not a folder"
