@@ -7,10 +7,11 @@ created is removed again).
 
 from __future__ import annotations
 
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from blendspace_pipeline.document import BlendSpaceDocument
@@ -29,6 +30,14 @@ class BuildResult:
     out_dir: Path
     written: list[Path]
     fixes: FixState
+    layer_fixes: dict[str, FixState] = field(default_factory=dict)  # beta layer name -> its fixes
+
+    def generated_names(self) -> list[str]:
+        """Every clip the fixes made: the main space's, then each beta layer's as `layer/clip`."""
+        names = sorted(self.fixes.generated)
+        for layer, state in self.layer_fixes.items():
+            names += [f"{layer}/{name}" for name in sorted(state.generated)]
+        return names
 
 
 def output_dir(space: BlendSpace, out: Path | None) -> Path:
@@ -81,12 +90,16 @@ def _writers(space: BlendSpace) -> dict[str, tuple[str, Callable[[BlendSpaceDocu
 
 
 def write_outputs(
-    space: BlendSpace, out_dir: Path, formats: Sequence[str], fixes: FixState | None = None
+    space: BlendSpace,
+    out_dir: Path,
+    formats: Sequence[str],
+    fixes: FixState | None = None,
+    layer_fixes: dict[str, FixState] | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
     disk full) is bad input, exit 2, and leaves nothing behind."""
     try:
-        return _write_outputs(space, out_dir, formats, fixes)
+        return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {})
     except OSError as error:
         where = error.filename or out_dir
         raise InputError(
@@ -97,23 +110,35 @@ def write_outputs(
 
 
 def _write_outputs(
-    space: BlendSpace, out_dir: Path, formats: Sequence[str], fixes: FixState | None
+    space: BlendSpace,
+    out_dir: Path,
+    formats: Sequence[str],
+    fixes: FixState,
+    layer_fixes: dict[str, FixState],
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
-    generated = fixes.generated if fixes is not None else {}
-    for sample in space.samples:
-        if sample.generated:
-            sample.clip.source = out_dir / "clips" / f"{sample.name}.usda"
+    # Generated clips: the main space's under clips/, a beta layer's under clips/<layer>/ (a layer
+    # may mirror a clip of the same name as the main space does).
+    made = [(space, fixes, "clips")] + [
+        (layer.space, layer_fixes[layer.name], f"clips/{_folder_name(layer.name)}")
+        for layer in space.layer_spaces
+        if isinstance(layer, BetaSpace) and layer.name in layer_fixes
+    ]
+    for sub, _, folder in made:
+        for sample in sub.samples:
+            if sample.generated:
+                sample.clip.source = out_dir / folder / f"{sample.name}.usda"
     document = to_document(space, out_dir)
     staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
     try:
         staged: list[tuple[Path, Path]] = []
-        in_space = {s.name for s in space.samples}
-        for name in sorted(generated):
-            if name in in_space:
-                for path in write_generated_clip(space, generated[name], staging / "clips"):
-                    staged.append((path, out_dir / "clips" / path.name))
+        for sub, state, folder in made:
+            in_space = {s.name for s in sub.samples}
+            for name in sorted(state.generated):
+                if name in in_space:
+                    for path in write_generated_clip(sub, state.generated[name], staging / folder):
+                        staged.append((path, out_dir / folder / path.name))
         writers = _writers(space)
         for name in formats:
             suffix, writer = writers[name]
@@ -121,7 +146,7 @@ def _write_outputs(
             writer(document, staging / target.name)
             staged.append((staging / target.name, target))
         for source, target in staged:
-            target.parent.mkdir(exist_ok=True)
+            target.parent.mkdir(parents=True, exist_ok=True)
             source.replace(target)
         return document, [target for _, target in staged]
     except BaseException:
@@ -142,9 +167,17 @@ def build(
 ) -> BuildResult:
     space = analyse(manifest, jobs=jobs, progress=progress)
     fixes = FixState()
+    layer_fixes: dict[str, FixState] = {}
     if fix:
         space, fixes = apply_fixes(space)
+        for layer in space.layer_spaces:  # a beta layer is a blend space: its own `fixes:` apply
+            if isinstance(layer, BetaSpace):
+                layer.space, layer_fixes[layer.name] = apply_fixes(layer.space)
     out_dir = output_dir(space, out)
     formats = list(dict.fromkeys(space.manifest.model.output.formats))
-    document, written = write_outputs(space, out_dir, formats, fixes)
-    return BuildResult(space=space, document=document, out_dir=out_dir, written=written, fixes=fixes)
+    document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes)
+    return BuildResult(space, document, out_dir, written, fixes, layer_fixes)
+
+
+def _folder_name(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name)

@@ -75,7 +75,16 @@ def test_layers_are_measured_placed_and_written(tmp_path: Path) -> None:
     layers = stage.GetDefaultPrim().GetChild("Layers")
     assert [p.GetName() for p in layers.GetChildren()] == ["lateral", "limp"]
     assert layers.GetChild("limp").GetAttribute("blendspace:mask:default").Get() == 0.25
-    assert len(layers.GetChild("lateral").GetChild("Samples").GetChildren()) == 4
+    # The beta layer's own `fixes:` ran: its missing tip_right was mirrored into clips/lateral/.
+    assert len(layers.GetChild("lateral").GetChild("Samples").GetChildren()) == 5
+    made = next(s for s in beta["samples"] if s["generated"])
+    assert (made["name"], made["fix"], made["source"]) == (
+        "tip_right",
+        "missing-opposite",
+        "clips/lateral/tip_right.usda",
+    )
+    assert made["position"] == [-90.0, 0.0]
+    assert (tmp_path / "out" / "clips" / "lateral" / "tip_right.usda").is_file()
 
     # The evaluator reads the layers back: weights sum to 1 and the style share is its intensity.
     loaded = read_document(tmp_path / "out" / "loco.blendspace.json")
@@ -114,3 +123,11 @@ def test_missing_beta_manifest_is_exit_2(tmp_path: Path, capsys: pytest.CaptureF
     assert main(["check", str(manifest)]) == 2
     err = capsys.readouterr().err
     assert "lateral.yaml not found" in err and f"{manifest}:" in err
+
+
+def test_no_fix_leaves_the_beta_layer_as_authored(tmp_path: Path) -> None:
+    manifest = _project(tmp_path)
+    assert main(["build", str(manifest), "--out", str(tmp_path / "out"), "--no-fix"]) in (0, 1)
+    beta = json.loads((tmp_path / "out" / "loco.blendspace.json").read_text())["layers"][0]
+    assert not [s for s in beta["samples"] if s["generated"]]
+    assert not (tmp_path / "out" / "clips").exists()

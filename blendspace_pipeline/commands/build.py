@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
         result = build(manifest, args.out, jobs=args.jobs, progress=terminal_progress(), fix=not args.no_fix)
         diagnostics = result.space.all_diagnostics()
         written = ", ".join(str(p) for p in result.written if p.parent == result.out_dir)
-        made = sorted(result.fixes.generated)
+        made = result.generated_names()
         generated = f", {len(made)} generated ({', '.join(made)})" if made else ""
         emit(
             args.format,
