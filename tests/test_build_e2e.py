@@ -181,11 +181,17 @@ def test_a_failing_writer_leaves_nothing_behind(tmp_path: Path, monkeypatch: pyt
     import blendspace_pipeline.report as report
 
     def broken_png(*_args: object, **_kwargs: object) -> None:
-        raise OSError("disk full")
+        raise OSError(28, "No space left on device")
 
+    def buggy_png(*_args: object, **_kwargs: object) -> None:
+        raise RuntimeError("a bug in a writer")
+
+    # The file system refusing is the user's to fix (exit 2); a bug in a writer is ours (exit 3).
     monkeypatch.setattr(report, "write_png", broken_png)
-    code = main(["build", str(manifest)])
-    assert code == 3
+    assert main(["build", str(manifest)]) == 2
+    assert not (tmp_path / "build").exists()
+    monkeypatch.setattr(report, "write_png", buggy_png)
+    assert main(["build", str(manifest)]) == 3
     assert not (tmp_path / "build").exists()
 
     # An existing output folder keeps its previous outputs untouched.
@@ -194,5 +200,5 @@ def test_a_failing_writer_leaves_nothing_behind(tmp_path: Path, monkeypatch: pyt
     assert main(["build", str(manifest)]) in (0, 1)
     previous = _tree(tmp_path / "build")
     monkeypatch.setattr(report, "write_png", broken_png)
-    assert main(["build", str(manifest)]) == 3
+    assert main(["build", str(manifest)]) == 2
     assert _tree(tmp_path / "build") == previous
