@@ -308,9 +308,13 @@ def _unique_placeholders(diagnostics: list[Diagnostic]) -> list[Placeholder]:
 
 
 def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[Diagnostic]:
-    """Drop findings a clip's `ignore:` covers; report suppressions that matched nothing."""
+    """Drop findings a clip's `ignore:` covers; report suppressions that matched nothing.
+
+    An `ignore:` belongs to a manifest entry, and a glob entry covers many clips: it is in use
+    when it suppressed a finding on any of them, and reported once per entry when it did not.
+    """
     kept: list[Diagnostic] = []
-    used: set[tuple[str, str]] = set()
+    used: set[tuple[int, int, str]] = set()  # (entry line, entry column, ignored rule)
     entries = {s.name: s.clip for s in space.samples}
     for finding in findings:
         suppressed = False
@@ -320,23 +324,31 @@ def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[D
                 continue
             for ignore in clip.entry.ignore:
                 if ignore.rule in (finding.rule, finding.code):
-                    used.add((clip_name, ignore.rule))
+                    used.add((clip.line, clip.column, ignore.rule))
                     suppressed = True
         if not suppressed:
             kept.append(finding)
+    by_entry: dict[tuple[int, int], list[str]] = {}
     for name, clip in entries.items():
-        for ignore in clip.entry.ignore:
-            if (name, ignore.rule) not in used:
-                kept.append(
-                    replace(
-                        _engine_diagnostic(
-                            "unused-suppression",
-                            f"clip {name!r} ignores {ignore.rule!r} but that rule reported nothing on it",
-                            hint="remove the stale `ignore:` entry (or check the rule slug)",
-                        ),
-                        clips=(name,),
-                    )
+        by_entry.setdefault((clip.line, clip.column), []).append(name)
+    for (line, column), names in by_entry.items():
+        entry = entries[names[0]].entry
+        for ignore in entry.ignore:
+            if (line, column, ignore.rule) in used:
+                continue
+            whom = (
+                f"clip {names[0]!r}" if len(names) == 1 else f"the entry {entry.path!r} ({len(names)} clips)"
+            )
+            kept.append(
+                replace(
+                    _engine_diagnostic(
+                        "unused-suppression",
+                        f"{whom} ignores {ignore.rule!r} but that rule reported nothing on it",
+                        hint="remove the stale `ignore:` entry (or check the rule slug)",
+                    ),
+                    clips=(names[0],),
                 )
+            )
     return kept
 
 

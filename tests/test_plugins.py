@@ -464,6 +464,24 @@ def test_unused_suppression_is_reported_at_its_clip(
     capsys.readouterr()
 
 
+def test_an_ignore_on_a_glob_entry_counts_for_the_entry(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One clip of the glob uses the ignore: no stale warning for the others; an ignore that no
+    clip of the glob uses is reported once, at the entry."""
+    manifest = write_project(tmp_path)
+    manifest.write_text(
+        "schema_version: 1\nname: plugtest\nclips:\n  - path: clips/*.usda\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}, {rule: acute-triangle, reason: later}]\n",
+        encoding="utf-8",
+    )
+    _, found = check(manifest, capsys)
+    assert not by_rule(found, "in-place-clip")
+    [stale] = by_rule(found, "unused-suppression")
+    assert "'clips/*.usda'" in stale["message"] and "acute-triangle" in stale["message"]
+    assert stale["location"]["line"] == 4
+
+
 # -- CONTRIBUTING.md examples ---------------------------------------------------------------------
 
 CONTRIBUTING = REPO / "CONTRIBUTING.md"
