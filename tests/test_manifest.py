@@ -665,3 +665,13 @@ def test_glob_over_the_shared_cmu_folder_skips_its_notes(tmp_path: Path) -> None
     files = resolve(tmp_path, f"  - path: {folder.as_posix()}/*\n")
     assert files == sorted(folder.glob("*.bvh"))
     assert files and all(f.suffix == ".bvh" for f in files)
+
+
+def test_a_hand_position_outside_the_axes_is_an_error(tmp_path: Path) -> None:
+    error = load_error(
+        tmp_path,
+        "schema_version: 1\nname: w\nclips:\n  - path: a.bvh\n  - path: b.bvh\n    position: [0, 99]\n",
+    )
+    assert error.message == "clips[1].position: 99 is outside the y axis (speed) range [-3, 6]"
+    assert where(error) == (6, 5)
+    assert error.hint is not None and "axis" in error.hint

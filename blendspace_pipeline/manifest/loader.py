@@ -85,7 +85,27 @@ def load_manifest(path: Path) -> LoadedManifest:
     except ValidationError as error:
         problems = translate(error, raw, lambda key_path: locate_in(tree, key_path))
         raise ManifestProblemsError.from_problems(path, problems) from None
+    _check_hand_positions(model, tree, path)
     return LoadedManifest(path=path, model=model, directory=Path(os.path.abspath(path)).parent, tree=tree)
+
+
+def _check_hand_positions(model: Manifest, tree: CommentedMap, path: Path) -> None:
+    """A hand placement (`clips[].position`) must lie on the axes: an engine could not hold it."""
+    axes = (model.axes.x, model.axes.y)
+    for index, entry in enumerate(model.clips):
+        if entry.position is None:
+            continue
+        for value, axis, name in zip(entry.position, axes, "xy", strict=True):
+            if not axis.min <= value <= axis.max:
+                line, column = locate_in(tree, ("clips", index, "position"))
+                raise ManifestError(
+                    f"clips[{index}].position: {value:g} is outside the {name} axis "
+                    f"({axis.feature}) range [{axis.min:g}, {axis.max:g}]",
+                    path=path,
+                    line=line,
+                    column=column,
+                    hint="give the position in axis units and order (x, y), inside the axis ranges",
+                )
 
 
 def _read_text(path: Path) -> str:
