@@ -29,12 +29,17 @@ def cache_dir() -> Path | None:
     return Path(base) / "blendspace-pipeline"
 
 
+# Bumped whenever the same clip would measure differently (a new feature, a changed detection),
+# so a developer's or CI's cache never serves results of older code under an unchanged version.
+MEASUREMENT_REVISION = 2
+
+
 def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | None) -> str:
     digest = hashlib.sha256()
     with path.open("rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):
             digest.update(block)
-    digest.update(f"|{__version__}|{settings_key}|{time_range!r}".encode())
+    digest.update(f"|{__version__}|{MEASUREMENT_REVISION}|{settings_key}|{time_range!r}".encode())
     return digest.hexdigest()
 
 
