@@ -21,6 +21,14 @@ from blendspace_pipeline.quaternions import FloatArray
 UNIT_METERS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 # An adult's hip socket stands about 0.9 m above the floor (roughly 0.53 x body height).
 REFERENCE_HIP_HEIGHT = 0.9
+# `hip_height` measures down to the lowest *joint* (toe or ankle), which stands a few centimetres
+# above the floor, so the height compared with it is the socket's height less that.
+_LOWEST_JOINT_HEIGHT = 0.04
+# `hip_height` takes this percentile of the per-frame heights: the character at its most upright
+# (legs nearly straight), which is what the reference describes. The median read a walk's bent
+# knees, and a take's crouches or start/stop phases dragged it down (CMU 131_01: 13.1 units by
+# the median vs 14.1 at the 90th percentile; 131_02, same performer: 14.0 vs 14.4).
+_UPRIGHT_PERCENTILE = 90.0
 _PLAUSIBLE_HIP_HEIGHT = (0.45, 1.5)
 _AXIS_VECTORS = {
     "+x": (1.0, 0.0, 0.0),
@@ -165,16 +173,20 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
 
 
 def hip_height(clip: Clip, world_pos: FloatArray, up_axis: str, root: RootPoint) -> float:
-    """Median height of the root point above the lowest joint (the feet), in file units."""
+    """Upright height of the root point above the lowest joint (the feet), in file units."""
     axis = 2 if up_axis == "z" else 1
     heights = root.positions(world_pos)[:, axis] - world_pos[:, :, axis].min(axis=1)
-    return float(np.median(heights))
+    return float(np.percentile(heights, _UPRIGHT_PERCENTILE))
 
 
 def resolve_units(
     clip: Clip, world_pos: FloatArray, settings: RigSettings, up_axis: str, root: RootPoint
 ) -> tuple[float, str, bool]:
-    """(metres per unit, where it came from, whether it is a guess)."""
+    """(metres per unit, where it came from, whether it is a guess).
+
+    Pass the whole, untrimmed clip: a unit estimated per range would differ between ranges of
+    one file.
+    """
     if isinstance(settings.units, float | int) and not isinstance(settings.units, bool):
         return float(settings.units), "manifest", False
     if settings.units in UNIT_METERS:
@@ -187,11 +199,12 @@ def resolve_units(
     if height <= 0:
         return 1.0, "assumed metres", True
     low, high = _PLAUSIBLE_HIP_HEIGHT
+    reference = REFERENCE_HIP_HEIGHT - _LOWEST_JOINT_HEIGHT
     plausible = {unit: scale for unit, scale in UNIT_METERS.items() if low <= height * scale <= high}
     if plausible:
-        unit = min(plausible, key=lambda u: abs(np.log(height * plausible[u] / REFERENCE_HIP_HEIGHT)))
+        unit = min(plausible, key=lambda u: abs(np.log(height * plausible[u] / reference)))
         return plausible[unit], f"detected ({unit})", False
-    return REFERENCE_HIP_HEIGHT / height, "guessed from hip height", True
+    return reference / height, "guessed from hip height", True
 
 
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:

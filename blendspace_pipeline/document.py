@@ -1,8 +1,8 @@
 """The blend-space JSON document (`N.blendspace.json`, ``schema_version: 1``).
 
 This is the engine-neutral result of a build and the input of `eval`, `export` and the report.
-The keys named in spec.md are the contract; the extra keys (``snapping_error``, ``clip``,
-``hint``, ``location``, ``build``) carry what the report and CI integrations need.
+The keys named in spec.md are the contract; the extra keys (``snapping_error``, ``clip`` with its
+``gait_period``, ``hint``, ``location``, ``build``) carry what the report and CI integrations need.
 `blendspace schema blendspace` prints the JSON Schema of this model.
 """
 
@@ -41,6 +41,12 @@ class ClipInfoDoc(_Strict):
     facing: str = Field(description="What the facing was measured from (hip line or a joint axis).")
     range: list[float] | None = Field(default=None, description="Trim applied from the manifest, seconds.")
     notes: list[str] = Field(default_factory=list, description="What the reader or measurement noticed.")
+    gait_period: float | None = Field(
+        default=None,
+        description="Seconds per stride (two steps) of the clip's gait, null when it has none (idle, "
+        "turn on the spot); `eval` syncs playback rates by it. Absent in documents written before it "
+        "existed, where `eval` falls back to the clip's duration.",
+    )
 
 
 class SampleDoc(_Strict):

@@ -4,7 +4,9 @@ This is what an engine would blend at (x, y) with the given layer values, comput
 method.md §5–6 describes:
 
 - the main space gives barycentric weights in the triangle holding the query (normalised axes,
-  `geometry.blend_weights`); outside the hull the query moves to the nearest hull point;
+  `geometry.blend_weights`); outside the hull the query moves to the nearest hull point. A
+  degenerate space has no triangles: collinear samples (1D) interpolate linearly along their
+  chain, a single sample position (0D) takes everything;
 - a beta layer with value β mixes the result so far (1 − β) with its own 2D space at the same
   query (β), paper §4;
 - a style layer with intensity s evaluates its 1D space at the query's value of the style's
@@ -12,8 +14,11 @@ method.md §5–6 describes:
   a ``joint`` applies the layer's per-joint mask to s (MechWarrior's feather blending);
 - the flat list is then merged (the same clip reached twice counts once), culled (weights below
   ``cull``) and unitized to sum to 1, as MechWarrior 4's blend trees do before interpolating;
-- playback rates keep the gait cycles of the blended clips aligned: each clip plays at
-  ``own cycle / weighted-average cycle`` so that every cycle lasts the blended length.
+- playback rates keep the gait cycles of the blended clips aligned (MechWarrior's cadence
+  rule): each walking clip plays at ``own stride period / weighted-average stride period`` so
+  that every stride lasts the blended length; a clip without a gait (idle, turn on the spot)
+  plays at rate 1 and stays out of the average. The stride period is the build's
+  ``clip.gait_period``; documents written before it existed fall back to the clip's duration.
 
 Layers apply in document order; a layer with no value (or 0) does not take part. In the JSON
 (`Evaluation.to_json`), an entry's ``layer`` is null for the main space, else the name of the
@@ -33,7 +38,7 @@ import numpy as np
 
 from blendspace_pipeline.document import BlendSpaceDocument, SampleDoc
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.geometry import AxisRange, blend_weights, normalise
+from blendspace_pipeline.geometry import AxisRange, blend_weights, normalise, space_dimension
 from blendspace_pipeline.layers_doc import BetaLayerDoc, MaskDoc, StyleLayerDoc, StyleSampleDoc, parse_layers
 from blendspace_pipeline.quaternions import FloatArray
 
@@ -49,8 +54,8 @@ class WeightEntry:
     source: str
     weight: float
     layer: str | None  # first place the clip was reached: None = main space, else a layer name
-    playback_rate: float | None  # None when the clip's cycle length is unknown
-    cycle_length: float | None
+    playback_rate: float | None  # 1 for a clip without a gait; None when its cycle is unknown
+    cycle_length: float | None  # stride period (or, for older documents, duration); None: no gait
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -93,6 +98,7 @@ class Evaluation:
     layers: list[LayerReport] = field(default_factory=list)
     joint: str | None = None
     cull: float = DEFAULT_CULL
+    dimension: int = 2  # what the main space spans: 2, or 1 (collinear samples) / 0 (one position)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -104,6 +110,7 @@ class Evaluation:
             "layers": [layer.to_json() for layer in self.layers],
             "joint": self.joint,
             "cull": self.cull,
+            "dimension": self.dimension,
         }
 
 
@@ -128,6 +135,7 @@ def evaluate(
 ) -> Evaluation:
     """The flattened weights at (x, y) in axis units; see the module docstring for the rules."""
     values = _checked_values(doc, layers or {}, cull)
+    _check_joint(doc, joint)
     query = np.array([float(x), float(y)])
     pairs, outside = _space_weights(doc, doc.samples, doc.triangles, query)
     contributions = [_Contribution((s.name, s.source, None), s, w, MAIN) for s, w in pairs]
@@ -152,6 +160,7 @@ def evaluate(
         layers=reports,
         joint=joint,
         cull=cull,
+        dimension=_dimension(doc),
     )
 
 
@@ -180,6 +189,35 @@ def _checked_values(doc: BlendSpaceDocument, values: Mapping[str, float], cull: 
     return dict(values)
 
 
+def _check_joint(doc: BlendSpaceDocument, joint: str | None) -> None:
+    """A ``joint`` must be one a layer's mask names: anything else (a typo) would silently get
+    the masks' default weight. The document does not record the skeleton's other joints, so
+    the hint says how to evaluate those: they all take their mask's default."""
+    if joint is None:
+        return
+    masks = {
+        layer.name: layer.mask
+        for layer in parse_layers(doc)
+        if isinstance(layer, StyleLayerDoc) and layer.mask is not None
+    }
+    if not masks:
+        raise InputError(
+            f"--joint {joint}: no layer of this blend space has a per-joint mask",
+            hint="leave out --joint: without masks every joint blends the same",
+        )
+    known = sorted({name for mask in masks.values() for name in mask.joints})
+    if joint in known:
+        return
+    close = difflib.get_close_matches(joint, known, n=1)
+    defaults = ", ".join(f"{name} {mask.default:g}" for name, mask in masks.items())
+    raise InputError(
+        f"--joint {joint}: no mask names this joint (masked joints: {', '.join(known)})",
+        hint=(f"did you mean {close[0]!r}? " if close else "")
+        + f"joints a mask does not list take its default weight (layers with masks: {defaults}); "
+        "for them pass --layer NAME=<value x default> without --joint",
+    )
+
+
 def _layer_hint(name: str, names: Sequence[str]) -> str:
     if not names:
         return "this blend space has no layers; add them under `layers:` in the manifest and rebuild"
@@ -204,6 +242,12 @@ def _space_weights(
     triangle_array = np.array(triangles, dtype=np.int64).reshape(-1, 3)
     pairs, outside = blend_weights(normalise(query, ranges), vertices, triangle_array)
     return [(samples[index], weight) for index, weight in pairs], outside
+
+
+def _dimension(doc: BlendSpaceDocument) -> int:
+    """What the main space spans (2, 1 or 0), in normalised coordinates like its weights."""
+    points = np.array([s.position for s in doc.samples], dtype=np.float64).reshape(-1, 2)
+    return space_dimension(normalise(points, _axis_ranges(doc)), np.array(doc.triangles).reshape(-1, 3))
 
 
 def _evaluated_point(pairs: Sequence[tuple[SampleDoc, float]]) -> tuple[float, float]:
@@ -310,17 +354,32 @@ def _unitize(contributions: list[_Contribution], cull: float) -> list[_Contribut
 
 
 def cycle_length(sample: SampleDoc | StyleSampleDoc) -> float | None:
-    """A clip's gait-cycle length: its measured `duration`, else the clip's duration."""
+    """A clip's gait-cycle length in seconds: its stride period, None when it has no gait.
+
+    Documents written before `clip.gait_period` existed fall back to the measured `duration`
+    (else the clip's): right for a clip holding exactly one stride, which is all they knew.
+    """
+    info = sample.clip
+    if info is not None and "gait_period" in info.model_fields_set:
+        period = info.gait_period
+        return float(period) if period is not None and period > 0.0 else None
     duration = sample.features.get("duration")
-    if duration is None and sample.clip is not None:
-        duration = sample.clip.duration
+    if duration is None and info is not None:
+        duration = info.duration
     return float(duration) if duration is not None and duration > 0.0 else None
 
 
-def _sync(contributions: list[_Contribution]) -> tuple[list[WeightEntry], float | None]:
-    """Rates that make every blended cycle last the weighted-average cycle (MechWarrior cadence).
+def _has_no_gait(sample: SampleDoc | StyleSampleDoc) -> bool:
+    """The build found no stride in the clip (not: the document does not say)."""
+    info = sample.clip
+    return info is not None and "gait_period" in info.model_fields_set and info.gait_period is None
 
-    Clips without a known cycle length keep no rate and stay out of the average.
+
+def _sync(contributions: list[_Contribution]) -> tuple[list[WeightEntry], float | None]:
+    """Rates that make every blended stride last the weighted-average stride (MechWarrior cadence).
+
+    Clips without a gait play at their own speed (rate 1) and stay out of the average; clips
+    whose cycle is unknown (an older document without durations) get no rate.
     """
     cycles = [cycle_length(c.sample) for c in contributions]
     known = [
@@ -334,9 +393,15 @@ def _sync(contributions: list[_Contribution]) -> tuple[list[WeightEntry], float 
             source=c.sample.source,
             weight=c.weight,
             layer=c.layer,
-            playback_rate=length / blended if length is not None and blended else None,
+            playback_rate=_rate(c.sample, length, blended),
             cycle_length=length,
         )
         for c, length in zip(contributions, cycles, strict=True)
     ]
     return entries, blended
+
+
+def _rate(sample: SampleDoc | StyleSampleDoc, length: float | None, blended: float | None) -> float | None:
+    if length is not None and blended:
+        return length / blended
+    return 1.0 if _has_no_gait(sample) else None

@@ -18,6 +18,8 @@ IntArray = NDArray[np.int64]
 
 NORMALISED_EXTENT = 100.0
 _EPS = 1e-9
+# Normalised distance (axes 0..100) under which points count as on a line or on each other.
+_COINCIDENT = 1e-6
 
 
 @dataclass(frozen=True)
@@ -105,12 +107,13 @@ def blend_weights(
 
     Inside the triangulation: barycentric weights of the containing triangle. Outside: the
     query moves to the nearest point of the hull boundary, as Unreal and Godot do, and the
-    second value says so. Weights sum to 1; zero weights are dropped.
+    second value says so. Without triangles (collinear samples, one sample) see
+    `_weights_without_triangles`. Weights sum to 1; zero weights are dropped.
     """
     query = np.asarray(query, dtype=np.float64)
     triangles = np.asarray(triangles, dtype=np.int64)
     if len(triangles) == 0:
-        return _weights_without_triangles(query, vertices), len(vertices) > 1
+        return _weights_without_triangles(query, np.asarray(vertices, dtype=np.float64))
     found, weights = locate(query[None, :], vertices, triangles)
     if found[0] >= 0:
         tri = triangles[found[0]]
@@ -126,12 +129,65 @@ def blend_weights(
     return _pairs(np.array([a, b]), np.array([1.0 - t, t])), True
 
 
-def _weights_without_triangles(query: FloatArray, vertices: FloatArray) -> list[tuple[int, float]]:
-    """Fewer than three non-collinear samples: the nearest sample takes everything."""
+def space_dimension(vertices: FloatArray, triangles: IntArray) -> int:
+    """2 for a triangulated space; else what its samples span: 1 on a line, 0 at one point.
+
+    A space without triangles but with samples off one line (a hand-edited document) counts as 2.
+    """
+    if len(np.asarray(triangles).reshape(-1, 3)) > 0:
+        return 2
+    return _line_of(np.asarray(vertices, dtype=np.float64).reshape(-1, 2))[0]
+
+
+def _line_of(vertices: FloatArray) -> tuple[int, FloatArray]:
+    """The affine dimension of ``vertices`` (0, 1 or 2) and their main direction (unit vector)."""
     if len(vertices) == 0:
-        return []
+        return 0, np.array([1.0, 0.0])
+    centred = vertices - vertices.mean(axis=0)
+    # The first right singular vector is the direction of largest spread: the line, if any.
+    direction = np.linalg.svd(centred)[2][0]
+    along = centred @ direction
+    across = centred @ np.array([-direction[1], direction[0]])
+    if float(np.ptp(along)) <= _COINCIDENT:
+        return 0, direction
+    return (1 if float(np.abs(across).max()) <= _COINCIDENT else 2), direction
+
+
+def _weights_without_triangles(
+    query: FloatArray, vertices: FloatArray
+) -> tuple[list[tuple[int, float]], bool]:
+    """Weights in a space that has no triangles: what its samples span decides.
+
+    Collinear samples (idle, walk, run all at turn 0) form a 1D space: the query projects onto
+    the chain of segments between neighbouring samples and blends that segment's two ends, as
+    Unreal does for a collinear 2D space and a 1D blend space does everywhere; it is outside when
+    it is off the chain. One sample position (0D) takes the whole weight, outside unless the
+    query is on it. A hand-edited document with samples off one line but no triangles gets the
+    nearest sample. The second value says whether the query was moved.
+    """
+    if len(vertices) == 0:
+        return [], False
+    dimension, direction = _line_of(vertices)
+    if dimension == 1:
+        return _chain_weights(query, vertices, direction)
     nearest = int(np.argmin(np.linalg.norm(vertices - query, axis=1)))
-    return [(nearest, 1.0)]
+    return [(nearest, 1.0)], bool(np.linalg.norm(vertices[nearest] - query) > _COINCIDENT)
+
+
+def _chain_weights(
+    query: FloatArray, vertices: FloatArray, direction: FloatArray
+) -> tuple[list[tuple[int, float]], bool]:
+    """Linear weights on the segment of the sorted collinear samples nearest to ``query``."""
+    order = np.argsort(vertices @ direction, kind="stable")
+    along = (vertices @ direction)[order]
+    at = float(np.clip(query @ direction, along[0], along[-1]))
+    # The segment whose far end is the first sample beyond the query's projection (the last
+    # segment when it projects onto or past the last sample).
+    upper = min(max(int(np.searchsorted(along, at, side="right")), 1), len(along) - 1)
+    a, b = int(order[upper - 1]), int(order[upper])
+    closest, t = closest_point_on_segment(query, vertices[a], vertices[b])
+    outside = float(np.linalg.norm(query - closest)) > _COINCIDENT
+    return _pairs(np.array([a, b]), np.array([1.0 - t, t])), outside
 
 
 def _pairs(indices: IntArray, weights: FloatArray) -> list[tuple[int, float]]:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from blendspace_pipeline.clip import Clip, forward_kinematics
+from blendspace_pipeline.clip_ops.phase import detect_cycle
 from blendspace_pipeline.detect import (
     RigSettings,
     detect_tpose_frame,
@@ -51,33 +52,53 @@ class Measurement:
     facing: str
     frames: int
     fps: float
+    # Seconds per stride (`clip_ops.phase.detect_cycle`), None without a gait: what `eval` syncs
+    # playback rates by. No default on purpose: cache entries written before it existed then fail
+    # to load (TypeError) and are measured again instead of reading as "no gait".
+    gait_period: float | None
     notes: list[str] = field(default_factory=list)
     in_place: bool = False
     units_guessed: bool = False
     joint_names: list[str] = field(default_factory=list)
 
 
-def trim(clip: Clip, time_range: tuple[float, float] | None) -> Clip:
-    """Frames inside ``time_range`` (seconds from the clip's start), both ends included."""
+def frame_span(clip: Clip, time_range: tuple[float, float] | None) -> tuple[int, int]:
+    """First and stop (exclusive) frame of ``time_range`` (seconds from the clip's start).
+
+    Both ends are included and each snaps to its nearest frame: a BVH ``Frame Time: .0083333``
+    is 120.0005 fps, so "frames at or after 1 s" would skip the frame at 0.999996 s and
+    ``range: [1, 3]`` would last 1.992 s; the nearest frames keep it at 2.0 s (within half a
+    frame at each end whatever the rate's rounding).
+    """
     if time_range is None:
-        return clip
+        return 0, clip.frame_count
     start, end = time_range
-    first = int(np.ceil(start * clip.fps - 1e-6))
-    last = int(np.floor(end * clip.fps + 1e-6))
+    first = int(np.floor(start * clip.fps + 0.5))
+    last = int(np.floor(end * clip.fps + 0.5))
     if first >= clip.frame_count:
         raise ClipReadError(
             f"clip {clip.name!r}: range starts at {start:g} s but the clip lasts {clip.duration:g} s",
             path=clip.source,
             hint="use a range inside the clip",
         )
-    return clip.trimmed(first, min(last, clip.frame_count - 1) + 1)
+    return first, min(last, clip.frame_count - 1) + 1
+
+
+def trim(clip: Clip, time_range: tuple[float, float] | None) -> Clip:
+    """The frames of ``time_range`` (see `frame_span`), as a new clip."""
+    if time_range is None:
+        return clip
+    return clip.trimmed(*frame_span(clip, time_range))
 
 
 def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] | None = None) -> Measurement:
     """Every feature of spec.md for ``clip`` (trimmed to ``time_range`` first)."""
     notes: list[str] = []
-    used = trim(clip, time_range)
-    world_rot, world_pos = forward_kinematics(used)
+    first, stop = frame_span(clip, time_range)
+    # Forward kinematics of the whole clip: the unit estimate needs every frame (below).
+    whole_rot, whole_pos = forward_kinematics(clip)
+    used = clip.trimmed(first, stop) if time_range is not None else clip
+    world_rot, world_pos = whole_rot[first:stop], whole_pos[first:stop]
     drop = (
         detect_tpose_frame(used, world_pos, settings) if (time_range is None or time_range[0] == 0) else False
     )
@@ -94,7 +115,9 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
     up_axis, up_note = resolve_up(used, world_pos, settings)
     root = resolve_root(used, settings)
     facing = resolve_facing(used, settings, up_axis)
-    meters_per_unit, units_source, guessed = resolve_units(used, world_pos, settings, up_axis, root)
+    # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
+    # `range:` entry of one take gets the same unit (and so comparable speeds).
+    meters_per_unit, units_source, guessed = resolve_units(clip, whole_pos, settings, up_axis, root)
     notes += [n for n in (up_note,) if n]
     notes += root.notes + facing.notes
     if guessed:
@@ -108,6 +131,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
+    cycle = detect_cycle(used, settings)
     return Measurement(
         features=features,
         meters_per_unit=meters_per_unit,
@@ -117,6 +141,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
         facing=facing.label,
         frames=used.frame_count,
         fps=used.fps,
+        gait_period=cycle.period if cycle is not None else None,
         notes=notes,
         in_place=in_place,
         units_guessed=guessed,

@@ -68,6 +68,7 @@ def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:
         facing=m.facing,
         range=[float(v) for v in entry.range] if entry.range is not None else None,
         notes=list(m.notes),
+        gait_period=_r(m.gait_period) if m.gait_period is not None else None,
     )
 
 

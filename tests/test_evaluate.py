@@ -16,6 +16,10 @@ from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.evaluate import Evaluation, evaluate
 from blendspace_pipeline.layers_doc import StyleLayerDoc, parse_layer_list, parse_layers
+from blendspace_pipeline.pipeline import analyse
+from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.to_document import to_document
+from blendspace_pipeline.writers.bvh import write_bvh_clip
 
 TURN_SPEED = (("turn_rate", -180.0, 180.0, "deg/s"), ("speed", -3.0, 6.0, "m/s"))
 UNIT_BOX = (("turn_rate", -1.0, 1.0, "deg/s"), ("speed", -1.0, 1.0, "m/s"))
@@ -32,10 +36,14 @@ def make_doc(
     axes: tuple[tuple[str, float, float, str], ...] = TURN_SPEED,
     durations: dict[str, float] | None = None,
     layers: list[dict[str, Any]] | None = None,
+    triangles: list[list[int]] | None = None,
 ) -> BlendSpaceDocument:
-    """A document placed by hand, triangulated by scipy's Delaunay on normalised coordinates."""
+    """A document placed by hand, triangulated by scipy's Delaunay on normalised coordinates
+    unless ``triangles`` are given (a degenerate space has none)."""
     names = list(points)
     positions = np.array([points[n] for n in names], dtype=float)
+    if triangles is None:
+        triangles = Delaunay(_normalised(positions, axes)).simplices.tolist()
     return BlendSpaceDocument.model_validate(
         {
             "schema_version": 1,
@@ -47,7 +55,7 @@ def make_doc(
             "samples": [
                 _sample(n, p, (durations or {}).get(n)) for n, p in zip(names, positions, strict=True)
             ],
-            "triangles": Delaunay(_normalised(positions, axes)).simplices.tolist(),
+            "triangles": triangles,
             "layers": layers or [],
         }
     )
@@ -276,7 +284,8 @@ def test_joint_masks_scale_the_style_and_are_reported() -> None:
     assert whole.to_json()["layers"][0]["mask"] == mask
     spine = evaluate(doc, 0.0, 0.5, layers={"drunk": 0.4}, joint="Spine", cull=0.0)
     assert sum(w for c, w in weights_of(spine).items() if c.startswith("drunk")) == pytest.approx(0.2)
-    head = evaluate(doc, 0.0, 0.5, layers={"drunk": 0.4}, joint="Head", cull=0.0)
+    # A joint the mask does not list takes its default (0 here): the hint's way to evaluate it.
+    head = evaluate(doc, 0.0, 0.5, layers={"drunk": 0.4 * 0.0}, cull=0.0)
     assert weights_of(head) == pytest.approx({"a": 0.5, "c": 0.5})
 
 
@@ -321,6 +330,145 @@ def test_cycle_length_falls_back_to_the_clip_duration_and_unknown_lengths_have_n
     rates = {e.clip: e.playback_rate for e in result.weights}
     assert result.cycle_length == pytest.approx(2.0)
     assert rates == {"a": pytest.approx(0.5), "b": pytest.approx(1.5), "c": None}
+
+
+def _clip_info(duration: float, **extra: Any) -> dict[str, Any]:
+    return {
+        "duration": duration, "fps": 30.0, "frames": round(duration * 30) + 1, "meters_per_unit": 1.0,
+        "units_source": "file", "up_axis": "y", "root": "hips", "facing": "hips", **extra,
+    }  # fmt: skip
+
+
+def test_rates_sync_stride_periods_and_clips_without_a_gait_play_at_rate_one() -> None:
+    raw = make_doc(TRIANGLE, axes=UNIT_BOX, durations={"a": 2.0, "b": 1.5, "c": 1.0}).model_dump()
+    # a is idle (no stride); b holds two strides of 0.75 s; c one stride of 1 s.
+    for sample, period in zip(raw["samples"], (None, 0.75, 1.0), strict=True):
+        sample["clip"] = _clip_info(sample["features"]["duration"], gait_period=period)
+    result = evaluate(BlendSpaceDocument.model_validate(raw), 0.25, 0.5)  # a .25, b .25, c .5
+    # Only the walking clips set the cadence: (0.25 x 0.75 + 0.5 x 1) / 0.75.
+    blended = (0.25 * 0.75 + 0.5 * 1.0) / 0.75
+    assert result.cycle_length == pytest.approx(blended)
+    rates = {e.clip: e.playback_rate for e in result.weights}
+    assert rates == pytest.approx({"a": 1.0, "b": 0.75 / blended, "c": 1.0 / blended})
+    assert {e.clip: e.cycle_length for e in result.weights}["a"] is None
+
+
+def _write_bvh_project(folder: Path, specs: list[GaitSpec]) -> Path:
+    (folder / "clips").mkdir(parents=True)
+    for spec in specs:
+        write_bvh_clip(generate(spec), folder / "clips" / f"{spec.name}.bvh")
+    manifest = folder / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: gait\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    return manifest
+
+
+def test_built_documents_carry_the_stride_period_and_eval_syncs_by_it(tmp_path: Path) -> None:
+    """Procedural clips of known stride: walk_fwd one stride in 1 s, walk_right two strides of
+    0.75 s in 1.5 s (its duration is not its cycle), idle none."""
+    specs = [
+        GaitSpec("idle", duration=2.0),
+        GaitSpec("walk_fwd", speed=1.3, duration=1.0),
+        GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.5),
+    ]
+    doc = to_document(analyse(_write_bvh_project(tmp_path, specs), with_layers=False), tmp_path)
+    periods = {s.name: s.clip.gait_period if s.clip else "missing" for s in doc.samples}
+    assert periods == {"idle": None, "walk_fwd": pytest.approx(1.0, rel=0.01),
+                       "walk_right": pytest.approx(0.75, rel=0.01)}  # fmt: skip
+    # The written JSON says so too (null for idle), and survives the round trip.
+    raw = json.loads(doc.model_dump_json())
+    assert {s["name"]: s["clip"]["gait_period"] for s in raw["samples"]}["idle"] is None
+    doc = BlendSpaceDocument.model_validate(raw)
+    result = evaluate(doc, -30.0, 1.0, cull=0.0)
+    weights = weights_of(result)
+    assert set(weights) == {"idle", "walk_fwd", "walk_right"}
+    blended = (weights["walk_fwd"] * 1.0 + weights["walk_right"] * 0.75) / (
+        weights["walk_fwd"] + weights["walk_right"]
+    )
+    assert result.cycle_length == pytest.approx(blended, rel=0.01)
+    rates = {e.clip: e.playback_rate for e in result.weights}
+    assert rates["idle"] == 1.0
+    # Synced by duration instead, walk_right would play at 1.5 / ~1.2, faster than walk_fwd.
+    assert rates["walk_right"] == pytest.approx(0.75 / blended, rel=0.01)
+    slow_down, speed_up = rates["walk_right"], rates["walk_fwd"]
+    assert slow_down is not None and speed_up is not None
+    assert slow_down < 1.0 < speed_up  # the quicker stride slows down, the slower one speeds up
+    for entry in result.weights:
+        if entry.clip != "idle":
+            assert entry.cycle_length is not None and entry.playback_rate is not None
+            assert entry.cycle_length / entry.playback_rate == pytest.approx(blended, rel=0.01)
+
+
+# --- degenerate spaces ------------------------------------------------------------------------
+
+COLLINEAR = {"idle": (0.0, 0.0), "walk": (0.0, 1.4), "run": (0.0, 4.0)}
+
+
+@pytest.mark.parametrize(
+    ("query", "expected", "outside", "evaluated"),
+    [
+        # On the chain: linear between the neighbouring samples, (4 - 2) / (4 - 1.4) for walk.
+        ((0.0, 2.0), {"walk": 2.0 / 2.6, "run": 0.6 / 2.6}, False, None),
+        ((0.0, 0.7), {"idle": 0.5, "walk": 0.5}, False, None),
+        ((0.0, 1.4), {"walk": 1.0}, False, None),
+        # Off the line: projected onto the nearest point of the chain (x = 0, same speed).
+        ((90.0, 1.0), {"idle": 0.4 / 1.4, "walk": 1.0 / 1.4}, True, (0.0, 1.0)),
+        # Beyond its ends: the end sample.
+        ((0.0, 5.0), {"run": 1.0}, True, (0.0, 4.0)),
+        ((-45.0, -2.0), {"idle": 1.0}, True, (0.0, 0.0)),
+    ],
+)
+def test_collinear_samples_interpolate_along_their_chain(
+    query: tuple[float, float],
+    expected: dict[str, float],
+    outside: bool,
+    evaluated: tuple[float, float] | None,
+) -> None:
+    doc = make_doc(COLLINEAR, triangles=[])
+    result = evaluate(doc, *query, cull=0.0)
+    assert weights_of(result) == pytest.approx(expected)
+    assert result.outside_hull is outside
+    assert result.dimension == 1
+    if evaluated is None:
+        assert result.hull_point is None
+    else:
+        assert result.hull_point == pytest.approx(evaluated)
+
+
+def test_a_diagonal_chain_interpolates_in_normalised_space() -> None:
+    # On one line in axis units is on one line in normalised units (the map is affine).
+    doc = make_doc({"a": (-90.0, -1.5), "b": (0.0, 0.0), "c": (90.0, 1.5)}, triangles=[])
+    result = evaluate(doc, 45.0, 0.75, cull=0.0)
+    assert weights_of(result) == pytest.approx({"b": 0.5, "c": 0.5})
+    assert not result.outside_hull and result.dimension == 1
+
+
+def test_a_single_sample_takes_everything_and_is_outside_elsewhere() -> None:
+    doc = make_doc({"idle": (0.0, 0.0)}, triangles=[])
+    at = evaluate(doc, 0.0, 0.0)
+    assert weights_of(at) == {"idle": 1.0} and not at.outside_hull and at.dimension == 0
+    away = evaluate(doc, 30.0, 2.0)
+    assert weights_of(away) == {"idle": 1.0} and away.outside_hull and away.hull_point == (0.0, 0.0)
+    assert evaluate(make_doc(LOCOMOTION), 0.0, 1.0).dimension == 2
+
+
+def test_eval_command_says_when_the_space_is_degenerate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(make_doc(COLLINEAR, triangles=[]), tmp_path)
+    assert main(["eval", str(path), "--at", "x=0,y=2"]) == 0
+    text = capsys.readouterr().out
+    assert "degenerate space (1D)" in text and "outside" not in text
+    assert main(["eval", str(path), "--at", "x=90,y=1"]) == 0
+    assert "outside the hull: the main space evaluates at the nearest point of the sample line (0, 1)" in (
+        capsys.readouterr().out
+    )
+    assert main(["eval", str(path), "--at", "x=0,y=2", "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["dimension"] == 1
+    single = _write(make_doc({"idle": (0.0, 0.0)}, triangles=[]), tmp_path)
+    assert main(["eval", str(single), "--at", "x=0,y=0"]) == 0
+    assert "degenerate space (0D)" in capsys.readouterr().out
+    assert main(["eval", str(_write(make_doc(TRIANGLE, axes=UNIT_BOX), tmp_path)), "--at", "x=0,y=0"]) == 0
+    assert "degenerate" not in capsys.readouterr().out
 
 
 def test_unknown_layer_and_out_of_range_values_are_input_errors() -> None:
@@ -381,6 +529,8 @@ def test_eval_command_prints_text_and_json(tmp_path: Path, capsys: pytest.Captur
         (["--at", "z=1,y=1"], "unknown axis 'z'"),
         (["--at", "x=0,y=0", "--layer", "drunkk=0.5"], "did you mean 'drunk'"),
         (["--at", "x=0,y=0", "--layer", "drunk"], "not NAME=VALUE"),
+        (["--at", "x=0,y=0", "--layer", "drunk=0.5", "--layer", "drunk=0.7"], "--layer drunk is given twice"),
+        (["--at", "x=0,y=0", "--joint", "Hips"], "no layer of this blend space has a per-joint mask"),
     ],
 )
 def test_eval_command_rejects_bad_arguments(
@@ -420,3 +570,17 @@ def test_eval_command_rejects_triangles_naming_missing_samples(
     path.write_text(json.dumps(raw), encoding="utf-8")
     assert main(["eval", str(path), "--at", "x=0,y=0"]) == 2
     assert "triangle 0 [0, 1, 7]" in capsys.readouterr().err
+
+
+def test_eval_command_rejects_a_joint_no_mask_names(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    mask = {"joints": {"Hips": 1.0, "Spine": 0.5}, "default": 0.25}
+    path = _write(make_doc(TRIANGLE, axes=UNIT_BOX, layers=[_style(mask=mask)]), tmp_path)
+    assert main(["eval", str(path), "--at", "x=0,y=0", "--layer", "drunk=0.4", "--joint", "Nope"]) == 2
+    err = capsys.readouterr().err
+    assert "--joint Nope: no mask names this joint (masked joints: Hips, Spine)" in err
+    assert "drunk 0.25" in err and "Traceback" not in err
+    assert main(["eval", str(path), "--at", "x=0,y=0", "--joint", "spine"]) == 2
+    assert "did you mean 'Spine'" in capsys.readouterr().err
+    assert main(["eval", str(path), "--at", "x=0,y=0", "--layer", "drunk=0.4", "--joint", "Spine"]) == 0

@@ -276,6 +276,22 @@ def test_godot_refuses_more_points_than_it_can_hold() -> None:
         export(make_doc(grid), "godot")
 
 
+def _without_triangles(names: list[str]) -> BlendSpaceDocument:
+    """A degenerate space: only the samples ``names`` (on one line, or one), no triangles."""
+    raw = make_doc(LAYOUT).model_dump()
+    raw["samples"] = [sample for sample in raw["samples"] if sample["name"] in names]
+    raw["triangles"] = []
+    return BlendSpaceDocument.model_validate(raw)
+
+
+@pytest.mark.parametrize("names", [["idle", "walk", "run", "back"], ["idle"]])
+def test_godot_refuses_a_space_without_triangles(names: list[str]) -> None:
+    # Godot blends only inside triangles, and its auto_triangles finds none on one line either.
+    with pytest.raises(InputError, match="blends only inside triangles and this space has none") as error:
+        export(_without_triangles(names), "godot")
+    assert error.value.hint is not None and "AnimationNodeBlendSpace1D" in error.value.hint
+
+
 def test_godot_string_escapes_survive_the_parser() -> None:
     doc = make_doc({'a "quoted" \\ name': (0.0, 0.0), "b": (90.0, 0.0), "c": (0.0, 4.5)})
     assert 'a "quoted" \\ name' in read_godot(export(doc, "godot").text).points
@@ -505,3 +521,42 @@ def test_export_command_rejects_bad_input(tmp_path: Path, capsys: pytest.Capture
     assert main(["export", str(path), "--engine", "cryengine"]) == 2
     assert main(["export", str(tmp_path / "missing.json"), "--engine", "unity"]) == 2
     assert "cannot read" in capsys.readouterr().err
+
+
+def test_export_command_refuses_a_godot_space_without_triangles(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(_without_triangles(["idle", "walk", "run"]), tmp_path)
+    assert main(["export", str(path), "--engine", "godot"]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: Godot's AnimationNodeBlendSpace2D blends only inside triangles" in err
+    assert "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loco.blendspace.json"]  # nothing written
+
+
+def test_export_command_out_with_a_trailing_separator_is_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    out = tmp_path / "ex" / "godot"
+    assert main(["export", str(path), "--engine", "godot", "--out", f"{out}/"]) == 0
+    assert out.is_dir() and (out / "loco.tres").is_file()
+    assert f"wrote {out / 'loco.tres'} (godot)" in capsys.readouterr().out
+    # Again: the same file, and the output says it replaced it.
+    assert main(["export", str(path), "--engine", "godot", "--out", f"{out}/"]) == 0
+    assert f"wrote {out / 'loco.tres'} (godot; replaced the previous file)" in capsys.readouterr().out
+    assert [p.name for p in out.iterdir()] == ["loco.tres"]
+
+
+def test_export_command_turns_write_failures_into_input_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    (tmp_path / "afile").write_text("in the way", encoding="utf-8")
+    target = tmp_path / "afile" / "x.tres"
+    assert main(["export", str(path), "--engine", "godot", "--out", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot write {target}: " in err and "Traceback" not in err
+    assert main(["export", str(path), "--engine", "godot", "--out", f"{tmp_path / 'afile'}/"]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+    assert (tmp_path / "afile").read_text(encoding="utf-8") == "in the way"

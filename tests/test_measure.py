@@ -138,6 +138,26 @@ def test_range_trims() -> None:
     assert m.frames == 31
 
 
+def test_range_ends_snap_to_the_nearest_frame() -> None:
+    """BVH writes 120 fps as `Frame Time: .0083333` (120.0005 fps): the frame at 0.999996 s is the
+    one at 1 s, so `range: [1, 3]` lasts 2 s (the end is included), not 1.992 s."""
+    clip = generate(GaitSpec("mocap", speed=1.0, duration=4.0, fps=120.0))
+    clip.fps = 1.0 / 0.0083333
+    m = measure(clip, AUTO, (1.0, 3.0))
+    assert m.frames == 241
+    assert m.features["duration"] == pytest.approx(2.0, abs=1e-4)
+
+
+def test_ranges_of_one_clip_share_the_estimated_unit() -> None:
+    """The unit is estimated once from the whole clip, not per range (so ranges stay comparable)."""
+    clip = generate(GaitSpec("odd", speed=1.4, duration=4.0), meters_per_unit=0.0564)
+    clip.meters_per_unit = None
+    units = {measure(clip, AUTO, time_range).meters_per_unit for time_range in ((0.0, 1.5), (2.0, 4.0))}
+    units.add(measure(clip, AUTO).meters_per_unit)
+    assert len(units) == 1
+    assert units.pop() == pytest.approx(0.0564, rel=0.1)
+
+
 def test_range_outside_clip_and_single_frame_are_errors() -> None:
     clip = generate(GaitSpec("short", speed=1.0, duration=1.0))
     with pytest.raises(ClipReadError, match="range starts"):

@@ -131,3 +131,53 @@ def test_cmu_walk_with_range_and_units(tmp_path: Path) -> None:
     assert any(d.rule == "units-doubt" for d in guessed.diagnostics)
     for sample in guessed.samples:
         assert 0.04 < sample.clip.measurement.meters_per_unit < 0.08
+
+
+def test_godot_mirrored_strafe_rereads_where_it_was_placed(tmp_path: Path) -> None:
+    """The mirrored strafe_right is written as USD; read back, it must measure at its placed
+    position (its flat Godot skeleton survives the file, so the root track still decides)."""
+    from blendspace_pipeline.detect import RigSettings
+    from blendspace_pipeline.measure import measure
+    from blendspace_pipeline.readers import read_clips
+
+    shared_data("godot-tps-demo", "strafe_left-cycle.tres")
+    clips = "".join(
+        f"  - path: '@DATA/godot-tps-demo/{name}.tres'\n"
+        for name in ("Idle-cycle", "strafe_front-cycle", "strafe_back-cycle", "strafe_left-cycle")
+    )
+    manifest = _manifest(
+        tmp_path,
+        "schema_version: 1\nname: strafe\nclips:\n" + clips + "skeleton: {mirror: {left: .L, right: .R}}\n"
+        "axes:\n  x: {feature: lateral_speed, min: -3, max: 3, divisions: 60}\n"
+        "  y: {feature: forward_speed, min: -3, max: 3, divisions: 60}\n",
+    )
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--format", "json"]) in (0, 1)
+    doc = json.loads((out / "strafe.blendspace.json").read_text())
+    [mirrored] = [s for s in doc["samples"] if s["generated"]]
+    assert mirrored["name"] == "strafe_right-cycle"
+    [clip] = read_clips(out / mirrored["source"])
+    features = measure(clip, RigSettings()).features
+    x, y = mirrored["position"]
+    assert x == pytest.approx(2.2, abs=0.12)  # the mirror of strafe_left at (-2.2, 0)
+    assert features["lateral_speed"] == pytest.approx(x, abs=0.02 * 6)  # 2% of the 6 m/s axis range
+    assert features["forward_speed"] == pytest.approx(y, abs=0.02 * 6)
+    assert features["turn_rate"] == pytest.approx(0.0, abs=1e-3)
+
+
+def test_cmu_ranges_of_one_take_share_the_estimated_unit(tmp_path: Path) -> None:
+    """BVH has no unit: it is estimated once per file (not per range), near the CMU 0.0564 m."""
+    shared_data("cmu", "131_01.bvh")
+    ranges = ([0.5, 2.0], [2.0, 4.0], [4.0, 6.0], [6.0, 8.0])
+    clips = "".join(
+        f"  - path: '@DATA/cmu/131_01.bvh'\n    name: part_{i}\n    range: [{a}, {b}]\n"
+        for i, (a, b) in enumerate(ranges)
+    )
+    space = analyse(_manifest(tmp_path, "schema_version: 1\nname: c\nclips:\n" + clips))
+    units = {s.clip.measurement.meters_per_unit for s in space.samples}
+    assert len(units) == 1
+    # SOURCES.md: the hips stand about 15 units high, about 0.056 m per unit.
+    assert units.pop() == pytest.approx(0.0564, rel=0.12)
+    durations = sorted(s.clip.measurement.features["duration"] for s in space.samples)
+    # `range:` ends are included: [2, 4] at 120 fps lasts 2 s, not 2 s less a frame.
+    assert durations == pytest.approx([1.5, 2.0, 2.0, 2.0], abs=1e-3)

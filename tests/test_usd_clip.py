@@ -393,3 +393,57 @@ def test_shared_leaf_names_fall_back_to_full_joint_paths(tmp_path: Path) -> None
         "Hips/RightUpLeg/LeftLeg",
         "Spine",
     )
+
+
+def _flat(clip: Clip) -> Clip:
+    """``clip`` as a Godot Animation resource gives it: every joint its own track, no hierarchy."""
+    skeleton = clip.skeleton
+    clip.skeleton = Skeleton(
+        skeleton.names,
+        tuple(-1 for _ in skeleton.names),
+        skeleton.rest_translations,
+        skeleton.rest_rotations,
+        has_hierarchy=False,
+    )
+    return clip
+
+
+def test_flat_skeleton_is_marked_and_read_back_flat(tmp_path: Path) -> None:
+    path = tmp_path / "walk.usda"
+    write_usd_clip(_flat(walk_clip()), path)
+    [clip] = read(path)
+    assert not clip.skeleton.has_hierarchy
+    assert clip.skeleton.parents == (-1,) * 6
+    # An ordinary rig authors no mark, so its files stay as they were.
+    write_usd_clip(walk_clip(), tmp_path / "rig.usda")
+    assert "blendspace_pipeline" not in (tmp_path / "rig.usda").read_text()
+    assert read(tmp_path / "rig.usda")[0].skeleton.has_hierarchy
+
+
+def test_flat_mark_is_ignored_once_joints_have_parents(tmp_path: Path) -> None:
+    """An edited file whose joints gained a hierarchy must be posed through it, as UsdSkel does."""
+    path = tmp_path / "walk.usda"
+    write_usd_clip(walk_clip(), path)
+    stage = Usd.Stage.Open(str(path))
+    stage.GetPrimAtPath("/walk/Skeleton").SetCustomDataByKey("blendspace_pipeline:hasHierarchy", False)
+    stage.Save()
+    assert read(path)[0].skeleton.has_hierarchy
+
+
+def test_godot_clip_measures_the_same_after_a_usd_round_trip(tmp_path: Path) -> None:
+    """A .tres clip has no hierarchy, so it is measured on its root track; written to USD (as a
+    generated clip is) and read back, it must still be, not switch to the hip line."""
+    from conftest import shared_data
+
+    from blendspace_pipeline.detect import RigSettings
+    from blendspace_pipeline.measure import measure
+
+    [source] = read_clips(shared_data("godot-tps-demo", "strafe_left-cycle.tres"))
+    path = tmp_path / "strafe_left.usda"
+    write_usd_clip(source, path)
+    [clip] = read_clips(path)
+    assert not clip.skeleton.has_hierarchy
+    before, after = measure(source, RigSettings()), measure(clip, RigSettings())
+    assert (after.root, after.facing) == (before.root, before.facing)
+    for name, value in before.features.items():
+        assert after.features[name] == pytest.approx(value, abs=1e-6), name

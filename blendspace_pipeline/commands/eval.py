@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     doc = read_document(args.blendspace)
     try:
         x, y = parse_at(args.at, doc)
-        layers = dict(parse_layer_value(text) for text in args.layer)
+        layers = parse_layer_values(args.layer)
         result = evaluate(doc, x, y, layers=layers, cull=args.cull, joint=args.joint)
     except InputError as error:
         if error.path is None:
@@ -73,6 +73,20 @@ def parse_at(text: str, doc: BlendSpaceDocument) -> tuple[float, float]:
     if set(values) != {0, 1}:
         raise UsageError(f"--at {text!r} must give both axes ({_axis_listing(doc)})", hint=_AT_HINT)
     return values[0], values[1]
+
+
+def parse_layer_values(texts: list[str]) -> dict[str, float]:
+    """Every ``--layer NAME=VALUE``; a layer given twice is an error, not "the last one wins"."""
+    values: dict[str, float] = {}
+    for text in texts:
+        name, value = parse_layer_value(text)
+        if name in values:
+            raise UsageError(
+                f"--layer {name} is given twice ({values[name]:g} and {value:g})",
+                hint=f"give each layer once, e.g. --layer {name}={value:g}",
+            )
+        values[name] = value
+    return values
 
 
 def parse_layer_value(text: str) -> tuple[str, float]:
@@ -110,6 +124,8 @@ def render(doc: BlendSpaceDocument, result: Evaluation) -> str:
         f"{y_axis.feature}={result.query[1]:g} {y_axis.unit}"
         + (f" (joint {result.joint})" if result.joint else ""),
     ]
+    if result.dimension < 2:
+        lines.append(_DEGENERATE[result.dimension])
     width = max([len("clip"), *(len(entry.clip) for entry in result.weights)])
     lines.append(f"  {'clip':<{width}}  weight  rate   layer")
     for entry in result.weights:
@@ -119,14 +135,23 @@ def render(doc: BlendSpaceDocument, result: Evaluation) -> str:
     if result.cycle_length is not None:
         lines.append(f"blended cycle: {result.cycle_length:.3f} s")
     if result.hull_point is not None:
-        lines.append(
-            f"outside the hull: the main space evaluates at the nearest hull point "
-            f"({result.hull_point[0]:g}, {result.hull_point[1]:g})"
-        )
+        where = _NEAREST.get(result.dimension, "the nearest hull point")
+        x, y = result.hull_point
+        lines.append(f"outside the hull: the main space evaluates at {where} ({x:g}, {y:g})")
     elif result.outside_hull:
         lines.append("outside the hull of a beta layer: it evaluates at its nearest hull point")
     lines += [_layer_line(report) for report in result.layers]
     return "\n".join(lines) + "\n"
+
+
+_NEAREST = {0: "the only sample position", 1: "the nearest point of the sample line"}
+# Said when the main space has no triangles, so nobody mistakes it for a 2D blend.
+_DEGENERATE = {
+    0: "degenerate space (0D): every sample sits at one position, so it takes the whole weight; "
+    "add clips elsewhere to blend",
+    1: "degenerate space (1D): the samples lie on one line, so weights interpolate along it "
+    "between neighbouring samples; add a clip off the line for a 2D blend",
+}
 
 
 def _layer_line(report: LayerReport) -> str:

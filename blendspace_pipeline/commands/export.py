@@ -7,6 +7,7 @@ Writes the blend space in the engine's own format and conventions (see
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -22,10 +23,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--engine", required=True, choices=ENGINES, help="target engine")
     parser.add_argument(
         "--out",
-        type=Path,
+        # A string, not a Path: Path("ex/") drops the trailing separator that says "a folder".
         metavar="PATH",
-        help="output file, or a folder for the default name (default: N.tres / N.controller / N_unreal.py "
-        "beside the JSON)",
+        help="output file, or a folder (an existing one, or any path ending in /) for the default name "
+        "(default: N.tres / N.controller / N_unreal.py beside the JSON)",
     )
 
 
@@ -39,26 +40,56 @@ def run(args: argparse.Namespace) -> int:
             error.path = path
         raise
     target = output_path(args.out, path.parent / f"{doc.name}{result.suffix}")
-    write_export(result, target)
-    _print_notes(result, target)
+    replaced = target.exists()
+    try:
+        write_export(result, target)
+    except OSError as error:
+        raise _cannot_write(target, error) from None
+    _print_notes(result, target, replaced)
     return EXIT_OK
 
 
-def output_path(out: Path | None, default: Path) -> Path:
+def output_path(out: str | None, default: Path) -> Path:
+    """Where to write: ``out`` as a file, or ``default``'s name inside ``out`` when it is a folder.
+
+    A trailing separator or an existing directory makes ``out`` a folder, created when missing:
+    `--out ex/` must not write a file called ``ex``.
+    """
     if out is None:
         return default
-    if out.is_dir():
-        return out / default.name
-    if not out.parent.is_dir():
+    folder = Path(out)
+    if out.endswith(("/", os.sep)) or folder.is_dir():
+        if folder.exists() and not folder.is_dir():
+            raise InputError(
+                f"cannot write into {out}: {folder} is a file, not a folder",
+                hint="drop the trailing / to replace that file, or choose another folder",
+            )
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise _cannot_write(folder, error) from None
+        return folder / default.name
+    if not folder.parent.exists():
         raise InputError(
-            f"the folder {out.parent} does not exist",
-            path=out,
-            hint="create it first, or pass an existing folder to --out to use the default file name",
+            f"the folder {folder.parent} does not exist",
+            path=folder,
+            hint="create it first, end --out with / to have it created and get the default file name, "
+            "or pass an existing folder",
         )
-    return out
+    return folder
 
 
-def _print_notes(result: Export, target: Path) -> None:
-    sys.stdout.write(f"wrote {target} ({result.engine})\n")
+def _cannot_write(path: Path, error: OSError) -> InputError:
+    """A write that the system refuses is the user's to fix (permissions, a file in the way)."""
+    return InputError(
+        f"cannot write {path}: {error.strerror or error}",
+        hint="choose an --out in a folder you can write to",
+    )
+
+
+def _print_notes(result: Export, target: Path, replaced: bool) -> None:
+    sys.stdout.write(
+        f"wrote {target} ({result.engine}{'; replaced the previous file' if replaced else ''})\n"
+    )
     for note in result.notes:
         sys.stderr.write(f"note: {note}\n")

@@ -5,7 +5,8 @@ match the triangulation the rules checked; so the export turns it off and writes
 Order matters (engines.md §3): ``_set_triangles`` ignores its input while ``auto_triangles`` is
 true and ``add_triangle`` rejects indices of points not yet loaded, so ``auto_triangles = false``
 and then ``triangles`` come after every ``blend_point_N`` line. Each point's ``node`` precedes its
-``pos`` because setting ``node`` of index N is what creates point N.
+``pos`` because setting ``node`` of index N is what creates point N. A space without triangles
+(collinear samples, one sample) is refused: Godot would blend nothing in it.
 """
 
 from __future__ import annotations
@@ -41,6 +42,16 @@ def render(space: EngineSpace) -> tuple[str, list[str]]:
             f"Godot's AnimationNodeBlendSpace2D holds at most {MAX_BLEND_POINTS} points; "
             f"this space has {len(space.samples)}",
             hint="split the space (e.g. forward and backward halves) or remove near-duplicate clips",
+        )
+    if not space.triangles:
+        # Godot blends only inside triangles (`_process` returns nothing without them), and its own
+        # auto_triangles would not help: it needs three points off one line, exactly what our
+        # empty triangulation says this space lacks. An asset that plays nothing is worse than none.
+        raise InputError(
+            f"Godot's AnimationNodeBlendSpace2D blends only inside triangles and this space has none "
+            f"(its {len(space.samples)} sample(s) lie on one line or at one point): Godot would play nothing",
+            hint="add a clip off the line and rebuild, or blend these clips in an AnimationNodeBlendSpace1D "
+            "over the axis they vary along (`blendspace eval` shows the weights along the line)",
         )
     ids = [f"AnimationNodeAnimation_{index}" for index in range(len(space.samples))]
     lines = [f'[gd_resource type="AnimationNodeBlendSpace2D" load_steps={len(ids) + 1} format=3]', ""]

@@ -6,6 +6,9 @@ of the skeleton's joints (animation libraries often ship clips without a binding
 animation does not drive keep their rest transform, as UsdSkel itself poses them. The skeleton
 prim's own transform (an up-axis or unit conversion on the SkelRoot, root motion on an Xform) is
 folded into the root joints, so the clip's joints sit where UsdSkel puts them in the world.
+A flat skeleton marked by our writer as having no hierarchy (`usd_clip.FLAT_SKELETON_KEY`, clips
+made from Godot Animation tracks) is read back with ``has_hierarchy=False``, so it measures as
+its source did.
 
 USD has no line numbers once composed, so messages name the prim path instead.
 """
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +28,7 @@ from blendspace_pipeline import quaternions as quat
 from blendspace_pipeline.clip import Clip, Skeleton, UpAxis
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.writers.usd_clip import FLAT_SKELETON_KEY
 
 SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
@@ -196,8 +200,18 @@ def _read_layout(path: Path, skel: UsdSkel.Skeleton) -> _Layout:
         raise ClipReadError(f"Skeleton <{where}>: {reason}", path=path, hint=_REEXPORT)
     parents = tuple(int(p) for p in topology.GetParentIndices())
     rest_t, rest_r = _rest_pose(path, skel, parents)
-    skeleton = Skeleton(_joint_names(skel, paths), parents, rest_t, rest_r)
+    skeleton = Skeleton(_joint_names(skel, paths), parents, rest_t, rest_r, _has_hierarchy(skel, parents))
     return _Layout(paths, skeleton)
+
+
+def _has_hierarchy(skel: UsdSkel.Skeleton, parents: tuple[int, ...]) -> bool:
+    """False only for a flat joint list our writer marked as having no hierarchy.
+
+    The mark is ignored once the joints have parents (an edited file): forward kinematics must
+    then follow the hierarchy, as UsdSkel does.
+    """
+    marked = skel.GetPrim().GetCustomDataByKey(FLAT_SKELETON_KEY)
+    return not (marked is False and all(parent < 0 for parent in parents))
 
 
 def _joint_names(skel: UsdSkel.Skeleton, paths: list[str]) -> tuple[str, ...]:
@@ -365,7 +379,7 @@ def _fold_prim_transform(
     rest_t[children] *= scale[0]
     rest_r[roots] = quat.multiply(turns[0], rest_r[roots])
     rest_t[roots] = offsets[0] + scale[0] * quat.rotate(turns[0], rest_t[roots])
-    return Skeleton(skeleton.names, skeleton.parents, rest_t, rest_r)
+    return replace(skeleton, rest_translations=rest_t, rest_rotations=rest_r)
 
 
 def _stage_units(stage: Usd.Stage, notes: list[str]) -> tuple[float | None, UpAxis | None]:

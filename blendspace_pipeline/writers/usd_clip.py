@@ -4,6 +4,11 @@ Frame ``i`` is time code ``i`` and ``timeCodesPerSecond`` is the clip's rate, so
 shows the clip at its own speed. The skeleton carries ``restTransforms`` (local) and
 ``bindTransforms`` (the world rest pose) so UsdSkel can pose joints the animation leaves out, and
 ``jointNames`` keeps the original names when they are not valid USD path elements (``a:b``).
+A skeleton without hierarchy (a Godot Animation resource's bare tracks) is written flat and marked
+so in the Skeleton prim's ``customData`` (`FLAT_SKELETON_KEY`): a flat joint list alone does not
+say whether the source had no hierarchy, and measurement takes root motion and facing from a
+single joint's track only for such clips, so without the mark a re-read clip would measure
+differently.
 The file is deterministic: no timestamps, one float32 per value, so a rebuild is byte-identical.
 """
 
@@ -22,6 +27,9 @@ from blendspace_pipeline.clip import Clip, Skeleton
 from blendspace_pipeline.quaternions import FloatArray
 
 SUFFIXES = (".usd", ".usda", ".usdc")
+# customData key path (nested dictionary ``blendspace_pipeline = {hasHierarchy = false}``) on the
+# Skeleton prim; `readers.usd` restores `Skeleton.has_hierarchy` from it.
+FLAT_SKELETON_KEY = "blendspace_pipeline:hasHierarchy"
 
 
 def write_usd_clip(
@@ -97,6 +105,10 @@ def _write_skeleton(
     # bindTransforms are world-space: the rest pose run through the same FK as the clip.
     world_r, world_t = _rest_world(skeleton)
     skel.CreateBindTransformsAttr(_matrices(world_t, world_r))
+    if not skeleton.has_hierarchy:
+        # Authored only for flat skeletons, so files of ordinary rigs stay byte-identical to
+        # earlier builds; an absent key means the joint paths are the hierarchy, as in any USD.
+        skel.GetPrim().SetCustomDataByKey(FLAT_SKELETON_KEY, False)
     return skel
 
 
