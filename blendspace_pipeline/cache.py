@@ -1,6 +1,6 @@
 """Content-addressed measurement cache, so repeated checks (pre-commit, CI) skip clip parsing.
 
-A file's measurements are stored under the SHA-256 of its bytes, the tool version, the rig
+A file's measurements are stored under the SHA-256 of its bytes and name, the tool version, the rig
 settings and the trim range: touching a clip, upgrading the tool or changing `skeleton:`
 invalidates exactly what it must. Location: `BLENDSPACE_CACHE_DIR`, else the user cache folder.
 Writes are atomic; a corrupt or unreadable entry is ignored and rewritten.
@@ -39,7 +39,8 @@ def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | N
     with path.open("rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):
             digest.update(block)
-    digest.update(f"|{__version__}|{MEASUREMENT_REVISION}|{settings_key}|{time_range!r}".encode())
+    # The file name too: clips are named after it, so two copies of one take must not share names.
+    digest.update(f"|{path.name}|{__version__}|{MEASUREMENT_REVISION}|{settings_key}|{time_range!r}".encode())
     return digest.hexdigest()
 
 

@@ -81,6 +81,12 @@ def frame_span(clip: Clip, time_range: tuple[float, float] | None) -> tuple[int,
             path=clip.source,
             hint="use a range inside the clip",
         )
+    if last > clip.frame_count:  # more than a frame past the end: a typo (25 for 2.5), not rounding
+        raise ClipReadError(
+            f"clip {clip.name!r}: range ends at {end:g} s but the clip lasts {clip.duration:g} s",
+            path=clip.source,
+            hint=f"use an end of at most {clip.duration:g} s",
+        )
     return first, min(last, clip.frame_count - 1) + 1
 
 

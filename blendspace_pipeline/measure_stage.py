@@ -92,10 +92,24 @@ def measure_files(
     clips: list[MeasuredClip] = []
     for resolved, result in zip(files, results, strict=True):
         if isinstance(result, InputError):
-            raise result
+            raise _at_entry(loaded, resolved, result)
         clips += _named(resolved, result)
     _reject_duplicate_names(loaded, clips)
     return clips
+
+
+def _at_entry(loaded: LoadedManifest, resolved: ResolvedClipFile, error: InputError) -> InputError:
+    """An error without a line in the clip file (an unsupported format, a `range:` past the end,
+    an unknown `skeleton.root`) points at the manifest entry that pulled the file in."""
+    if error.line is not None:
+        return error
+    return InputError(
+        f"{resolved.path}: {error.message}",
+        path=loaded.path,
+        line=resolved.line,
+        column=resolved.column,
+        hint=error.hint,
+    )
 
 
 def _range(entry: ClipEntry) -> tuple[float, float] | None:

@@ -153,6 +153,7 @@ def test_unsupported_and_missing_clips_are_exit_2(tmp_path: Path) -> None:
     result = _cli("check", str(manifest))
     assert result.returncode == 2
     assert "FBX" in result.stderr and "glTF" in result.stderr and "Traceback" not in result.stderr
+    assert result.stderr.startswith(f"{manifest}:4:5: ")  # the entry that pulled the file in
 
     manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: nowhere/*.bvh\n")
     result = _cli("check", str(manifest))
@@ -202,3 +203,30 @@ def test_a_failing_writer_leaves_nothing_behind(tmp_path: Path, monkeypatch: pyt
     monkeypatch.setattr(report, "write_png", broken_png)
     assert main(["build", str(manifest)]) == 2
     assert _tree(tmp_path / "build") == previous
+
+
+def test_a_range_past_the_end_of_its_clip_is_exit_2_at_the_entry(tmp_path: Path) -> None:
+    _write_clip(tmp_path / "clips", GaitSpec("walk", speed=1.4, duration=2.5))
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: t\nclips:\n  - path: clips/walk.usda\n    range: [0.5, 25]\n"
+    )
+    result = _cli("check", str(manifest))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert result.stderr.startswith(f"{manifest}:4:5: ")
+    assert "range ends at 25 s but the clip lasts 2.5 s" in result.stderr
+
+
+def test_copies_of_one_take_keep_their_own_names_through_the_cache(tmp_path: Path) -> None:
+    spec = GaitSpec("walk", speed=1.4)
+    _write_clip(tmp_path / "clips", spec)
+    copy = tmp_path / "clips" / "walk_copy.usda"
+    copy.write_bytes((tmp_path / "clips" / "walk.usda").read_bytes())
+    one = tmp_path / "one.yaml"
+    one.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/walk.usda\n")
+    both = tmp_path / "both.yaml"
+    both.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.usda\n")
+    assert _cli("check", str(one)).returncode in (0, 1)  # fills the cache with walk.usda
+    result = _cli("check", str(both), "--format", "json")
+    assert result.returncode in (0, 1), result.stderr
+    assert "walk_copy" in result.stdout
