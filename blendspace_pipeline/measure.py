@@ -62,6 +62,10 @@ class Measurement:
     joint_names: list[str] = field(default_factory=list)
 
 
+# No rig spans 1e9 of its units (a million km in metres, 1,000 km in millimetres).
+_ABSURD_LENGTH = 1e9
+
+
 def frame_span(clip: Clip, time_range: tuple[float, float] | None) -> tuple[int, int]:
     """First and stop (exclusive) frame of ``time_range`` (seconds from the clip's start).
 
@@ -102,7 +106,15 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
     notes: list[str] = []
     first, stop = frame_span(clip, time_range)
     # Forward kinematics of the whole clip: the unit estimate needs every frame (below).
-    whole_rot, whole_pos = forward_kinematics(clip)
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd values are reported just below
+        whole_rot, whole_pos = forward_kinematics(clip)
+    if not (np.isfinite(whole_pos).all() and np.abs(whole_pos).max(initial=0.0) < _ABSURD_LENGTH):
+        raise ClipReadError(
+            f"clip {clip.name!r}: joint positions reach {np.nanmax(np.abs(whole_pos)):.3g} units, "
+            "beyond any unit of length",
+            path=clip.source,
+            hint="a channel holds a corrupt value (e.g. 1e308); re-export the clip",
+        )
     used = clip.trimmed(first, stop) if time_range is not None else clip
     world_rot, world_pos = whole_rot[first:stop], whole_pos[first:stop]
     drop = (

@@ -12,6 +12,7 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom
 
 from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.writers.bvh import write_bvh_clip
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 GOOD_CLIPS = ("idle", "walk", "turn")
@@ -77,6 +78,13 @@ def nan_values(tmp: Path) -> tuple[Path, str]:
     return _manifest(tmp, HEADER + "clips:\n  - path: clips/*.usda\n"), "nan.usda"
 
 
+def huge_values(tmp: Path) -> tuple[Path, str]:
+    clip = generate(GaitSpec("huge", speed=1.0))
+    clip.translations[3, 0, 1] = 1e308  # finite, but no length: FK overflows
+    write_bvh_clip(clip, tmp / "clips" / "huge.bvh")
+    return _manifest(tmp, HEADER + "clips:\n  - path: clips/*.usda\n  - path: clips/huge.bvh\n"), "huge.bvh"
+
+
 def usd_without_skeleton(tmp: Path) -> tuple[Path, str]:
     stage = Usd.Stage.CreateNew(str(tmp / "clips" / "mesh.usda"))
     UsdGeom.Xform.Define(stage, Sdf.Path("/World"))
@@ -124,6 +132,7 @@ CASES: list[Callable[[Path], tuple[Path, str]]] = [
     alias_bomb,
     duplicate_names,
     nan_values,
+    huge_values,
     usd_without_skeleton,
     zero_frames_bvh,
     garbage_bvh,
