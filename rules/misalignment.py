@@ -42,6 +42,7 @@ class Misalignment(Rule):
         for sample in space.samples:
             # Generated clips are checked like authored ones: a merge of a turning and a straight
             # walk turns a little, and must get the same verdict when fed back as a source.
+            covered: set[str] = set()  # expect: features this finding already speaks for
             for axis_index, line in enumerate(lines):
                 if line is None:
                     continue
@@ -51,9 +52,14 @@ class Misalignment(Rule):
                     continue
                 intended = list(sample.position)
                 intended[axis_index] = 0.0
+                # An `expect: {feature: 0}` says the same thing: one finding, not two.
+                expected = sample.expect.get(axis.feature) == 0 if sample.expect else False
+                if expected:
+                    covered.add(axis.feature)
                 yield self.report(
                     f"{sample.name} sits {sample.measured[axis_index]:+.3g} {UNITS.get(axis.feature, '')} "
-                    f"off the {axis.feature} = 0 axis ({offset:.2f} normalised, below {tau:g})",
+                    f"off the {axis.feature} = 0 axis ({offset:.2f} normalised, below {tau:g})"
+                    + (f"; its expect: says {axis.feature} 0" if expected else ""),
                     clips=[sample.name],
                     position=sample.position,
                     hint=f"if {sample.name} is meant to have {axis.feature} 0, re-author it straight "
@@ -66,12 +72,14 @@ class Misalignment(Rule):
                         )
                     ],
                 )
-            yield from self._expectations(space, sample)
+            yield from self._expectations(space, sample, covered)
 
-    def _expectations(self, space: SpaceView, sample: SampleView) -> Iterator[Diagnostic]:
+    def _expectations(self, space: SpaceView, sample: SampleView, covered: set[str]) -> Iterator[Diagnostic]:
         if not sample.expect:
             return
         for feature, wanted in sorted(sample.expect.items()):
+            if feature in covered:
+                continue
             measured = sample.features.get(feature)
             if measured is None:
                 continue
