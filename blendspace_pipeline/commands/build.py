@@ -6,8 +6,10 @@ import argparse
 from pathlib import Path
 
 from blendspace_pipeline.build import build
-from blendspace_pipeline.commands._shared import add_common, emit, exit_code
-from blendspace_pipeline.errors import UsageError
+from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
+from blendspace_pipeline.diagnostics import Diagnostic
+from blendspace_pipeline.errors import EXIT_INPUT, InputError, UsageError
+from blendspace_pipeline.pipeline import BlendSpace
 from blendspace_pipeline.progress import terminal_progress
 
 HELP = "build blend-space assets (JSON, USD, HTML report, PNG) from manifest(s)"
@@ -26,9 +28,32 @@ def run(args: argparse.Namespace) -> int:
             hint="build one manifest per --out, or drop --out",
         )
     worst = 0
+    # SARIF is one log per run (code scanning takes one file), so its results wait for the end;
+    # the other formats print each manifest as it is built.
+    sarif: list[Diagnostic] = []
+    spaces: list[BlendSpace] = []
     for manifest in args.manifests:
-        result = build(manifest, args.out, jobs=args.jobs, progress=terminal_progress(), fix=not args.no_fix)
+        # A manifest that cannot be built is reported and the others are still built.
+        try:
+            result = build(
+                manifest, args.out, jobs=args.jobs, progress=terminal_progress(), fix=not args.no_fix
+            )
+        except InputError as error:
+            worst = EXIT_INPUT
+            reported = report_input_error(args.format, error, manifest)
+            if reported is None:
+                continue
+            if args.format == "sarif":
+                sarif.append(reported)
+            else:
+                emit(args.format, [reported], "", extra={"manifest": str(manifest), "outputs": []})
+            continue
         diagnostics = result.space.all_diagnostics()
+        worst = max(worst, exit_code(diagnostics, args.strict))
+        if args.format == "sarif":
+            sarif += diagnostics
+            spaces.append(result.space)
+            continue
         written = ", ".join(str(p) for p in result.written if p.parent == result.out_dir)
         made = result.generated_names()
         generated = f", {len(made)} generated ({', '.join(made)})" if made else ""
@@ -39,5 +64,6 @@ def run(args: argparse.Namespace) -> int:
             f"{len(result.space.triangles)} triangles{generated} -> {written}\n",
             extra={"manifest": str(manifest), "outputs": [str(p) for p in result.written]},
         )
-        worst = max(worst, exit_code(diagnostics, args.strict))
+    if args.format == "sarif":
+        emit(args.format, sarif, "", spaces=spaces)
     return worst

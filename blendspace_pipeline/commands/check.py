@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-from blendspace_pipeline.commands._shared import add_common, emit, exit_code
-from blendspace_pipeline.pipeline import analyse
+from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
+from blendspace_pipeline.diagnostics import Diagnostic
+from blendspace_pipeline.errors import EXIT_INPUT, InputError
+from blendspace_pipeline.pipeline import BlendSpace, analyse
 from blendspace_pipeline.progress import terminal_progress
 
 HELP = "analyse manifest(s) and run the rules without writing anything (for CI and pre-commit)"
@@ -17,11 +19,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     worst = 0
-    everything = []
+    everything: list[Diagnostic] = []
+    spaces: list[BlendSpace] = []
+    invalid = 0
     for manifest in args.manifests:
-        space = analyse(manifest, jobs=args.jobs, progress=terminal_progress())
+        # One invalid manifest must not hide the findings of the others (pre-commit passes many).
+        try:
+            space = analyse(manifest, jobs=args.jobs, progress=terminal_progress())
+        except InputError as error:
+            invalid += 1
+            worst = EXIT_INPUT
+            reported = report_input_error(args.format, error, manifest)
+            if reported is not None:
+                everything.append(reported)
+            continue
+        spaces.append(space)
         found = space.all_diagnostics()
         everything += found
         worst = max(worst, exit_code(found, args.strict))
-    emit(args.format, everything, f"checked {len(args.manifests)} manifest(s): ")
+    if args.format == "text" and not spaces:
+        # Every manifest was invalid: stderr already says why, as it always has; no empty tally.
+        return worst
+    summary = f"checked {len(args.manifests)} manifest(s): "
+    if invalid:
+        summary = f"checked {len(args.manifests)} manifest(s), {invalid} invalid (see stderr): "
+    emit(args.format, everything, summary, spaces=spaces)
     return worst
