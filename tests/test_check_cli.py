@@ -853,3 +853,9 @@ def test_cache_can_be_switched_off(
     run(capsys, "check", manifest)
     run(capsys, "check", manifest)
     assert sorted(reads) == sorted(f"{name}.usda" for name in BAD * 2)
+
+
+@pytest.mark.parametrize("jobs", ["0", "-3", "two"])
+def test_jobs_must_be_a_positive_whole_number(jobs: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", "manifest.yaml", "--jobs", jobs]) == 2
+    assert "--jobs" in capsys.readouterr().err

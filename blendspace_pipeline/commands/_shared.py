@@ -69,8 +69,19 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--strict", action="store_true", help="exit 1 on warnings too")
     parser.add_argument(
-        "--jobs", type=int, default=1, metavar="N", help="measure clips in N processes (default 1)"
+        "--jobs", type=_positive, default=1, metavar="N", help="measure clips in N processes (default 1)"
     )
+
+
+def _positive(text: str) -> int:
+    """argparse type for --jobs: a whole number of at least 1 (argparse turns the error into exit 2)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} processes cannot measure anything: give 1 or more")
+    return value
 
 
 def exit_code(diagnostics: Sequence[Diagnostic], strict: bool) -> int:
