@@ -6,20 +6,25 @@ A rule is a class with a slug, a code, a default severity, a one-line summary an
 diagnostic (`fix=` and `fix_data=`) that the engine applies, and placeholders say which clip
 would cure the problem. Built-in rules (the top-level `rules/` folder) are written the same way.
 
-    from blendspace_pipeline.api import Rule, SpaceView
+    from blendspace_pipeline.api import Field, Rule, RuleOptions, SpaceView
 
     class NoTinyClips(Rule):
         \"\"\"Clips shorter than half a second rarely hold a full gait cycle.\"\"\"
         slug = "studio-short-clip"
         code = "ST001"
         severity = "warning"
-        summary = "clip shorter than 0.5 s"
+        summary = "clip shorter than a minimum length"
+
+        class Options(RuleOptions):
+            min_seconds: float = Field(0.5, gt=0, description="Shortest acceptable clip, seconds.")
 
         def check(self, space: SpaceView):
             for sample in space.samples:
-                if sample.features["duration"] < 0.5:
+                if sample.features["duration"] < self.options.min_seconds:
                     yield self.report(f"{sample.name} lasts {sample.features['duration']:.2f} s",
                                       clips=[sample.name], position=sample.position)
+
+A manifest sets options by slug or code: `rules: {options: {studio-short-clip: {min_seconds: 1}}}`.
 """
 
 from __future__ import annotations
@@ -27,6 +32,8 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
 from blendspace_pipeline.placement import Axis
@@ -127,6 +134,16 @@ class SpaceView:
         return sorted((int(a), int(b)) for a, b in found)
 
 
+class RuleOptions(BaseModel):
+    """Base of a rule's typed options: unknown keys are errors, values are read-only.
+
+    Give every field a default and a description (``Field(1.0, description=...)``): the
+    description is what `blendspace rules` prints.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
 class Rule:
     """Base class of every rule, built-in or studio-made."""
 
@@ -135,9 +152,16 @@ class Rule:
     severity: ClassVar[Severity]
     summary: ClassVar[str]
     fixable: ClassVar[bool] = False
+    # Typed options: a pydantic model (every field with a default and a description) that the
+    # manifest fills from `rules: {options: {<slug>: {...}}}`; the engine validates it, with line
+    # numbers, before the rule runs. None: the rule takes no options.
+    Options: ClassVar[type[RuleOptions] | None] = None
 
-    def __init__(self, severity: Severity | None = None) -> None:
+    def __init__(self, severity: Severity | None = None, options: RuleOptions | None = None) -> None:
         self.effective_severity: Severity = severity or self.severity
+        if options is None and self.Options is not None:
+            options = self.Options()
+        self.options = options
 
     def check(self, space: SpaceView) -> Iterable[Diagnostic]:
         raise NotImplementedError
@@ -197,4 +221,4 @@ def iter_rule_classes(namespace: Mapping[str, object]) -> Iterator[type[Rule]]:
             yield value
 
 
-__all__ += ["iter_rule_classes", "placeholder"]
+__all__ += ["Field", "RuleOptions", "iter_rule_classes", "placeholder"]

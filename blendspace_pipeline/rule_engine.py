@@ -9,8 +9,10 @@ visible `plugin-error` diagnostic naming its source: never a silent skip.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.util
+import math
 import os
 import pkgutil
 import sys
@@ -19,11 +21,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from importlib.metadata import entry_points
 from pathlib import Path
-from types import ModuleType
+from types import MappingProxyType, ModuleType
 from typing import TYPE_CHECKING
 
-from blendspace_pipeline.api import LayerView, Rule, SampleView, SpaceView, iter_rule_classes
+from pydantic import ValidationError
+
+from blendspace_pipeline.api import LayerView, Rule, RuleOptions, SampleView, SpaceView, iter_rule_classes
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
+from blendspace_pipeline.errors import ManifestError
 from blendspace_pipeline.layers import BetaSpace, Layer
 from blendspace_pipeline.measure_stage import MeasuredClip
 
@@ -32,7 +37,13 @@ if TYPE_CHECKING:
 
 ENTRY_POINT_GROUP = "blendspace_pipeline.rules"
 RULE_PATH_VARIABLE = "BLENDSPACE_RULE_PATH"
-ENGINE_CODES = {"plugin-error": "BS900", "unused-suppression": "BS901", "rule-crashed": "BS902"}
+ENGINE_CODES = {
+    "plugin-error": "BS900",
+    "unused-suppression": "BS901",
+    "rule-crashed": "BS902",
+    "unknown-rule": "BS906",  # BS903/BS904: fix_loop; BS905: invalid-input (commands)
+}
+_WARNINGS = {"unused-suppression", "unknown-rule"}
 
 
 @dataclass
@@ -67,6 +78,17 @@ class LoadedRules:
                 )
             )
             return
+        taken = next((slug for slug, known in self.rules.items() if known.code == rule.code), None)
+        if taken is not None:  # `select`, `ignore` and `severity` by code must name one rule
+            self.problems.append(
+                _engine_diagnostic(
+                    "plugin-error",
+                    f"duplicate rule code {rule.code!r}: {rule.slug} from {origin} repeats the code of "
+                    f"{taken} from {self.origins[taken]}; the first one is kept",
+                    hint="give the plugin rule its own code (studios use their own prefix, e.g. ST001)",
+                )
+            )
+            return
         self.rules[rule.slug] = rule
         self.origins[rule.slug] = origin
 
@@ -78,7 +100,7 @@ def _engine_diagnostic(slug: str, message: str, hint: str | None = None) -> Diag
     return Diagnostic(
         rule=slug,
         code=ENGINE_CODES[slug],
-        severity="error" if slug != "unused-suppression" else "warning",
+        severity="warning" if slug in _WARNINGS else "error",
         message=message,
         hint=hint,
     )
@@ -108,7 +130,7 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
     sys.dont_write_bytecode = True
     try:
         spec.loader.exec_module(module)
-    except Exception as error:  # a broken plugin is a diagnostic, never a crash
+    except (Exception, SystemExit) as error:  # a broken plugin is a diagnostic, never a crash or an exit
         sys.modules.pop(module_name, None)
         loaded.problems.append(_import_failure(origin, error))
         return
@@ -120,7 +142,7 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
 def _load_module_name(name: str, loaded: LoadedRules, origin: str) -> None:
     try:
         module = importlib.import_module(name)
-    except Exception as error:
+    except (Exception, SystemExit) as error:
         loaded.problems.append(_import_failure(origin, error))
         return
     loaded.add_module(module, origin)
@@ -137,7 +159,7 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
         origin = f"entry point {point.name} = {point.value}"
         try:
             target = point.load()
-        except Exception as error:
+        except (Exception, SystemExit) as error:
             loaded.problems.append(_import_failure(origin, error))
             continue
         if isinstance(target, ModuleType):
@@ -194,10 +216,11 @@ def sample_view(
         position=position,
         measured=measured,
         normalised=normalised,
-        features={str(k): float(v) for k, v in m.features.items()},
+        # Read-only: one view is shared by every rule, and no rule may change what the next sees.
+        features=MappingProxyType({str(k): float(v) for k, v in m.features.items()}),
         generated=generated,
         fix=fix,
-        expect={str(k): float(v) for k, v in expect.items()} if expect else None,
+        expect=MappingProxyType({str(k): float(v) for k, v in expect.items()}) if expect else None,
         frames=m.frames,
         fps=m.fps,
         meters_per_unit=m.meters_per_unit,
@@ -242,7 +265,7 @@ def _layer_view(layer: Layer) -> LayerView:
         "style",
         (axis,),
         tuple(samples),
-        mask=dict(mask.joints) if mask is not None else None,
+        mask=MappingProxyType(dict(mask.joints)) if mask is not None else None,
         mask_default=mask.default if mask is not None else 1.0,
     )
 
@@ -253,7 +276,7 @@ def space_view(space: BlendSpace) -> SpaceView:
         axes=space.axes,
         samples=_samples(space),
         triangles=tuple(space.triangles),
-        thresholds=space.manifest.model.thresholds.model_dump(),
+        thresholds=MappingProxyType(space.manifest.model.thresholds.model_dump()),
         layers=tuple(_layer_view(layer) for layer in space.layer_spaces),
     )
 
@@ -268,19 +291,28 @@ def run_rules(space: BlendSpace) -> None:
     """Run every selected rule, apply severities and suppressions, and store the results."""
     model = space.manifest.model
     loaded = load_rules(model.plugins, space.manifest.directory)
+    findings: list[Diagnostic] = list(loaded.problems)
+    findings += _check_rule_names(space, loaded)
+    options = _rule_options(space, loaded)
     view = space_view(space)
     by_code = loaded.by_code()
     severity_overrides = {by_code.get(key, key): value for key, value in model.rules.severity.items()}
-    findings: list[Diagnostic] = list(loaded.problems)
+    known_clips = {sample.name for sample in view.samples}
+    for layer in view.layers:
+        known_clips |= {sample.name for sample in layer.samples}
     for slug, rule_class in loaded.rules.items():
         if not _selected(slug, rule_class.code, model.rules.select, model.rules.ignore):
             continue
         override = severity_overrides.get(slug)
         if override == "off":
             continue
-        rule = rule_class(severity=override)
+        rule = rule_class(severity=override, options=options.get(slug))
         try:
-            findings += list(rule.check(view))
+            for item in rule.check(view):
+                problem = _malformed(item, known_clips)
+                if problem:
+                    raise TypeError(problem)
+                findings.append(item)
         except Exception as error:  # one broken rule must not hide the others
             findings.append(
                 _engine_diagnostic(
@@ -292,6 +324,94 @@ def run_rules(space: BlendSpace) -> None:
     findings = _apply_clip_ignores(space, findings)
     space.diagnostics = sorted(space.diagnostics + findings, key=Diagnostic.sort_key)
     space.placeholders = _unique_placeholders(space.diagnostics)
+
+
+def _malformed(item: object, known_clips: set[str]) -> str | None:
+    """Why a rule's output cannot be a finding (outputs would carry NaN or dangling names)."""
+    if not isinstance(item, Diagnostic):
+        return f"it yielded {type(item).__name__} {item!r:.60}, not a Diagnostic (use self.report)"
+    points = [item.position] if item.position is not None else []
+    points += [mark.position for mark in item.placeholders]
+    if any(not math.isfinite(value) for point in points for value in point):
+        return f"it reported a position that is not finite: {item.message!r:.80}"
+    unknown = sorted(set(item.clips) - known_clips)
+    if unknown:
+        return f"it named clips that are not in the space: {', '.join(unknown[:5])}"
+    return None
+
+
+def _rule_key(loaded: LoadedRules, name: str) -> str | None:
+    """The slug a `rules:` entry names (by slug or code), or None."""
+    return name if name in loaded.rules else loaded.by_code().get(name)
+
+
+def _check_rule_names(space: BlendSpace, loaded: LoadedRules) -> list[Diagnostic]:
+    """Every rule named in `rules:` must exist: a typo in `select` would switch checking off.
+
+    An unknown name is a manifest error (exit 2) at its line, unless a plugin failed to load: the
+    name may be that plugin's, so it is a warning and the broken plugin is the error to fix.
+    """
+    settings = space.manifest.model.rules
+    named: list[tuple[str, tuple[str | int, ...]]] = []
+    named += [(n, ("rules", "select", i)) for i, n in enumerate(settings.select) if n != "all"]
+    named += [(n, ("rules", "ignore", i)) for i, n in enumerate(settings.ignore)]
+    named += [(n, ("rules", "severity", n)) for n in settings.severity]
+    named += [(n, ("rules", "options", n)) for n in settings.options]
+    known = sorted(set(loaded.rules) | set(loaded.by_code()))
+    warnings: list[Diagnostic] = []
+    for name, key_path in named:
+        if _rule_key(loaded, name) is not None:
+            continue
+        close = difflib.get_close_matches(name, known, n=1)
+        hint = (f"did you mean {close[0]!r}? " if close else "") + "`blendspace rules` lists every rule"
+        line, column = space.manifest.locate(key_path)
+        message = f"{'.'.join(str(k) for k in key_path)}: no rule is called {name!r}"
+        if not loaded.problems:
+            raise ManifestError(message, path=space.manifest.path, line=line, column=column, hint=hint)
+        warnings.append(
+            replace(
+                _engine_diagnostic("unknown-rule", message, hint=hint + " (a plugin failed to load)"),
+                path=str(space.manifest.path),
+                line=line,
+                column=column,
+            )
+        )
+    return warnings
+
+
+def _rule_options(space: BlendSpace, loaded: LoadedRules) -> dict[str, RuleOptions]:
+    """Each configured rule's options, validated against its `Options` model (exit 2 if wrong)."""
+    manifest = space.manifest
+    validated: dict[str, RuleOptions] = {}
+    for name, values in manifest.model.rules.options.items():
+        slug = _rule_key(loaded, name)
+        if slug is None:
+            continue  # reported by _check_rule_names
+        model = loaded.rules[slug].Options
+        if model is None:
+            line, column = manifest.locate(("rules", "options", name))
+            raise ManifestError(
+                f"rules.options.{name}: the rule {slug} takes no options",
+                path=manifest.path,
+                line=line,
+                column=column,
+                hint="remove the entry; `blendspace rules` lists each rule's options",
+            )
+        try:
+            validated[slug] = model.model_validate(values)
+        except ValidationError as error:
+            first = error.errors()[0]
+            where = tuple(str(part) for part in first["loc"])
+            line, column = manifest.locate(("rules", "options", name, *where))
+            fields = ", ".join(model.model_fields)
+            raise ManifestError(
+                f"rules.options.{name}.{'.'.join(where)}: {first['msg']}",
+                path=manifest.path,
+                line=line,
+                column=column,
+                hint=f"the options of {slug} are: {fields}",
+            ) from None
+    return validated
 
 
 def _unique_placeholders(diagnostics: list[Diagnostic]) -> list[Placeholder]:

@@ -94,6 +94,13 @@ def space_from_specs(
     return space_from_positions(positions, axes=axes, features=features, **options)  # type: ignore[arg-type]
 
 
-def run_rule(rule: type[Rule], space: SpaceView) -> list[Diagnostic]:
-    """Every finding of ``rule`` on ``space``, sorted like the build sorts them."""
-    return sorted(rule().check(space), key=Diagnostic.sort_key)
+def run_rule(rule: type[Rule], space: SpaceView, **options: object) -> list[Diagnostic]:
+    """Every finding of ``rule`` on ``space``, sorted like the build sorts them.
+
+    Keyword arguments are the rule's typed options, validated by its `Options` model exactly as
+    the manifest's `rules: {options: ...}` would be (a pydantic ValidationError if wrong).
+    """
+    if options and rule.Options is None:
+        raise TypeError(f"{rule.slug} takes no options")
+    chosen = rule.Options.model_validate(options) if rule.Options is not None else None
+    return sorted(rule(options=chosen).check(space), key=Diagnostic.sort_key)

@@ -40,6 +40,13 @@ ENGINE_RULES: dict[str, RuleInfo] = {
         "A rule crashed while checking the blend space; its findings are missing, the other rules ran.",
         "error",
     ),
+    "unknown-rule": RuleInfo(
+        ENGINE_CODES["unknown-rule"],
+        "`rules:` names a rule that is not loaded",
+        "A rule slug or code in `rules:` matches no loaded rule while a plugin failed to load (it may "
+        "be that plugin's). Without a broken plugin an unknown name is a manifest error.",
+        "warning",
+    ),
     "fix-skipped": RuleInfo(
         "BS903",
         "an automatic fix was not applied",

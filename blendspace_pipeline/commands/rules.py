@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
 
+from blendspace_pipeline.api import Rule
 from blendspace_pipeline.rule_engine import load_rules
 
 HELP = "list every available rule (built-in, entry points, BLENDSPACE_RULE_PATH)"
@@ -17,7 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     loaded = load_rules()
-    rows = [
+    rows: list[dict[str, Any]] = [
         {
             "slug": slug,
             "code": rule.code,
@@ -26,6 +28,7 @@ def run(args: argparse.Namespace) -> int:
             "summary": rule.summary,
             "origin": loaded.origins[slug],
             "doc": rule.documentation(),
+            "options": _options(rule),
         }
         for slug, rule in sorted(loaded.rules.items(), key=lambda item: item[1].code)
     ]
@@ -39,6 +42,27 @@ def run(args: argparse.Namespace) -> int:
             sys.stdout.write(
                 f"{row['code']:<6} {row['slug']:<24} {row['severity']:<8} {fix:<8} {row['summary']}\n"
             )
+            for option in row["options"]:
+                sys.stdout.write(
+                    f"{'':<6} option {option['name']}: {option['type']} = {option['default']!r}"
+                    f"  {option['description']}\n"
+                )
         for problem in loaded.problems:
             sys.stdout.write(f"error: {problem.message}\n")
-    return 0
+    # A broken plugin must fail a CI step that lists rules, not scroll by.
+    return 1 if loaded.problems else 0
+
+
+def _options(rule: type[Rule]) -> list[dict[str, Any]]:
+    """A rule's typed options (`rules: {options: {slug: {...}}}`): name, type, default, description."""
+    if rule.Options is None:
+        return []
+    return [
+        {
+            "name": name,
+            "type": getattr(info.annotation, "__name__", str(info.annotation)),
+            "default": info.get_default(call_default_factory=True),
+            "description": info.description or "",
+        }
+        for name, info in rule.Options.model_fields.items()
+    ]

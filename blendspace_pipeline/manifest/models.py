@@ -10,7 +10,7 @@ the loader turns it into the error's ``hint:`` line.
 from __future__ import annotations
 
 import re
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -240,6 +240,10 @@ class RuleSettings(_Model):
     ignore: list[str] = Field(default_factory=list, description="Rule slugs or codes not to run.")
     severity: dict[str, Literal["error", "warning", "info", "off"]] = Field(
         default_factory=dict, description="Severity overrides by rule slug or code; 'off' disables the rule."
+    )
+    options: dict[str, dict[str, Any]] = Field(
+        default_factory=dict,
+        description="Typed options by rule slug or code (see `blendspace rules`), checked against the rule.",
     )
 
 
