@@ -65,13 +65,10 @@ def analyse_layers(space: BlendSpace, *, jobs: int = 1, progress: Progress | Non
     seen: dict[str, int] = {}
     for index, layer in enumerate(loaded.model.layers):
         if layer.name in seen:  # `eval --layer NAME=VALUE` and the USD prims need one layer a name
-            line, column = loaded.locate(("layers", index, "name"))
-            raise ManifestError(
+            raise loaded.error_at(
+                ("layers", index, "name"),
                 f"layers: the name {layer.name!r} is already used by layer {seen[layer.name] + 1}",
-                path=loaded.path,
-                line=line,
-                column=column,
-                hint="give every layer its own name",
+                "give every layer its own name",
             )
         seen[layer.name] = index
         if isinstance(layer, StyleLayer):

@@ -28,7 +28,6 @@ from pydantic import ValidationError
 
 from blendspace_pipeline.api import LayerView, Rule, RuleOptions, SampleView, SpaceView, iter_rule_classes
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
-from blendspace_pipeline.errors import ManifestError
 from blendspace_pipeline.layers import BetaSpace, Layer
 from blendspace_pipeline.measure_stage import MeasuredClip
 
@@ -364,10 +363,10 @@ def _check_rule_names(space: BlendSpace, loaded: LoadedRules) -> list[Diagnostic
             continue
         close = difflib.get_close_matches(name, known, n=1)
         hint = (f"did you mean {close[0]!r}? " if close else "") + "`blendspace rules` lists every rule"
-        line, column = space.manifest.locate(key_path)
         message = f"{'.'.join(str(k) for k in key_path)}: no rule is called {name!r}"
         if not loaded.problems:
-            raise ManifestError(message, path=space.manifest.path, line=line, column=column, hint=hint)
+            raise space.manifest.error_at(key_path, message, hint)
+        line, column = space.manifest.locate(key_path)
         warnings.append(
             replace(
                 _engine_diagnostic("unknown-rule", message, hint=hint + " (a plugin failed to load)"),
@@ -389,27 +388,20 @@ def _rule_options(space: BlendSpace, loaded: LoadedRules) -> dict[str, RuleOptio
             continue  # reported by _check_rule_names
         model = loaded.rules[slug].Options
         if model is None:
-            line, column = manifest.locate(("rules", "options", name))
-            raise ManifestError(
+            raise manifest.error_at(
+                ("rules", "options", name),
                 f"rules.options.{name}: the rule {slug} takes no options",
-                path=manifest.path,
-                line=line,
-                column=column,
-                hint="remove the entry; `blendspace rules` lists each rule's options",
+                "remove the entry; `blendspace rules` lists each rule's options",
             )
         try:
             validated[slug] = model.model_validate(values)
         except ValidationError as error:
             first = error.errors()[0]
             where = tuple(str(part) for part in first["loc"])
-            line, column = manifest.locate(("rules", "options", name, *where))
-            fields = ", ".join(model.model_fields)
-            raise ManifestError(
+            raise manifest.error_at(
+                ("rules", "options", name, *where),
                 f"rules.options.{name}.{'.'.join(where)}: {first['msg']}",
-                path=manifest.path,
-                line=line,
-                column=column,
-                hint=f"the options of {slug} are: {fields}",
+                f"the options of {slug} are: {', '.join(model.model_fields)}",
             ) from None
     return validated
 

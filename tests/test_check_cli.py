@@ -21,6 +21,7 @@ from typing import Any
 
 import jsonschema
 import pytest
+from conftest import tidy_set
 
 from blendspace_pipeline import measure_stage, readers
 from blendspace_pipeline.api import Rule, iter_rule_classes
@@ -31,13 +32,7 @@ from blendspace_pipeline.writers.usd_clip import write_usd_clip
 REPO = Path(__file__).resolve().parents[1]
 
 SPECS = (
-    GaitSpec("idle", duration=1.0),
-    GaitSpec("walk_fwd", speed=1.4, duration=1.0),
-    GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0),
-    GaitSpec("walk_right", speed=1.4, turn_rate=-60.0, duration=1.0),
-    GaitSpec("tip_left", turn_rate=90.0, duration=1.0),
-    GaitSpec("tip_right", turn_rate=-90.0, duration=1.0),
-    GaitSpec("walk_bwd", speed=1.1, direction=180.0, duration=1.0),
+    *tidy_set().values(),
     GaitSpec("run_drift", speed=3.0, turn_rate=5.0, duration=1.0),  # 5 deg/s off the axis: misalignment
 )
 # Warnings and infos only (misalignment, in-place idle, uncovered area).

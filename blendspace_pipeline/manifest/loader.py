@@ -47,6 +47,11 @@ class LoadedManifest:
         """1-based (line, column) of a key or list item; the nearest existing parent when absent."""
         return locate_in(self.tree, key_path)
 
+    def error_at(self, key_path: KeyPath, message: str, hint: str) -> ManifestError:
+        """A `ManifestError` (exit 2) pointing at ``key_path``'s line in this manifest."""
+        line, column = self.locate(key_path)
+        return ManifestError(message, path=self.path, line=line, column=column, hint=hint)
+
 
 def locate_in(tree: Any, key_path: KeyPath) -> tuple[int, int]:
     node = tree
