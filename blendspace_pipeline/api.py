@@ -31,7 +31,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar
+from types import MappingProxyType
+from typing import ClassVar, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -48,6 +49,17 @@ __all__ = [
     "Severity",
     "SpaceView",
 ]
+
+_V = TypeVar("_V")
+
+
+def _read_only(mapping: Mapping[str, _V]) -> Mapping[str, _V]:
+    """A read-only copy: one view is shared by every rule, and none may change what the next sees.
+
+    The copy also cuts the view off from the caller's dict (the engine's measurements, a test's
+    literal), so a later change there does not show through either.
+    """
+    return MappingProxyType(dict(mapping))
 
 
 @dataclass(frozen=True)
@@ -73,6 +85,14 @@ class SampleView:
     joint_names: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
 
+    def __post_init__(self) -> None:
+        # Frozen dataclasses only stop attribute assignment; the mappings need freezing too.
+        object.__setattr__(self, "features", _read_only(self.features))
+        if self.expect is not None:
+            object.__setattr__(self, "expect", _read_only(self.expect))
+        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        object.__setattr__(self, "notes", tuple(self.notes))
+
 
 @dataclass(frozen=True)
 class LayerView:
@@ -91,6 +111,11 @@ class LayerView:
     mask_default: float = 1.0
     axes_match: bool = True
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "samples", tuple(self.samples))
+        if self.mask is not None:
+            object.__setattr__(self, "mask", _read_only(self.mask))
+
 
 @dataclass(frozen=True)
 class SpaceView:
@@ -101,8 +126,17 @@ class SpaceView:
     samples: tuple[SampleView, ...]
     triangles: tuple[tuple[int, int, int], ...]
     thresholds: Mapping[str, float]
+    # Unused by the engine (a rule reads its own validated options as `self.options`); kept
+    # because it is part of the published view.
     options: Mapping[str, Mapping[str, object]] = field(default_factory=dict)
     layers: tuple[LayerView, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "samples", tuple(self.samples))
+        object.__setattr__(self, "triangles", tuple(tuple(t) for t in self.triangles))
+        object.__setattr__(self, "thresholds", _read_only(self.thresholds))
+        object.__setattr__(self, "options", _read_only({k: _read_only(v) for k, v in self.options.items()}))
+        object.__setattr__(self, "layers", tuple(self.layers))
 
     def sample(self, name: str) -> SampleView:
         for sample in self.samples:
@@ -158,9 +192,14 @@ class Rule:
     Options: ClassVar[type[RuleOptions] | None] = None
 
     def __init__(self, severity: Severity | None = None, options: RuleOptions | None = None) -> None:
+        # The engine makes a new instance for every run, so options and severity never leak
+        # from one blend space (or one manifest's `rules:`) into the next.
         self.effective_severity: Severity = severity or self.severity
         if options is None and self.Options is not None:
             options = self.Options()
+        if options is not None and (self.Options is None or not isinstance(options, self.Options)):
+            expected = self.Options.__name__ if self.Options is not None else "no options"
+            raise TypeError(f"{self.slug} takes {expected}, not {type(options).__name__}")
         self.options = options
 
     def check(self, space: SpaceView) -> Iterable[Diagnostic]:

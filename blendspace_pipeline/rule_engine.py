@@ -5,6 +5,9 @@ Rules come from four places, all through `load_rules`, in this order: the built-
 `blendspace_pipeline.rules`, the folders in `BLENDSPACE_RULE_PATH`, and the manifest's
 `plugins:` (module names or paths). A plugin that fails to import or repeats a slug becomes a
 visible `plugin-error` diagnostic naming its source: never a silent skip.
+
+Each run makes fresh rule instances with their validated options, and hands them read-only views;
+whatever a rule yields is checked (`finding_problem`) before it can reach the outputs or a fix.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import difflib
 import importlib
 import importlib.util
 import math
+import numbers
 import os
 import pkgutil
 import sys
@@ -21,13 +25,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from importlib.metadata import entry_points
 from pathlib import Path
-from types import MappingProxyType, ModuleType
+from types import ModuleType
 from typing import TYPE_CHECKING
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from blendspace_pipeline.api import LayerView, Rule, RuleOptions, SampleView, SpaceView, iter_rule_classes
-from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
+from blendspace_pipeline.diagnostics import SEVERITY_ORDER, Diagnostic, Placeholder, Severity
 from blendspace_pipeline.layers import BetaSpace, Layer
 from blendspace_pipeline.measure_stage import MeasuredClip
 
@@ -43,6 +47,10 @@ ENGINE_CODES = {
     "unknown-rule": "BS906",  # BS903/BS904: fix_loop; BS905: invalid-input (commands)
 }
 _WARNINGS = {"unused-suppression", "unknown-rule"}
+# The engine's own findings (here, in fix_loop and in the commands) own these names: a plugin rule
+# taking one would make `ignore:` and the reports ambiguous.
+RESERVED_SLUGS = frozenset(ENGINE_CODES) | {"fix-skipped", "fix-removed", "invalid-input"}
+RESERVED_CODE_PREFIX = "BS9"
 
 
 @dataclass
@@ -58,13 +66,19 @@ class LoadedRules:
             self.add(rule, origin)
 
     def add(self, rule: type[Rule], origin: str) -> None:
-        missing = [a for a in ("slug", "code", "severity", "summary") if not hasattr(rule, a)]
-        if missing or rule.severity not in ("error", "warning", "info"):
+        problem = rule_problem(rule)
+        if problem is not None:
+            self.problems.append(
+                _engine_diagnostic("plugin-error", f"rule {rule.__name__} from {origin} {problem}")
+            )
+            return
+        if rule.slug in RESERVED_SLUGS or rule.code.startswith(RESERVED_CODE_PREFIX):
             self.problems.append(
                 _engine_diagnostic(
                     "plugin-error",
-                    f"rule {rule.__name__} from {origin} is incomplete "
-                    f"(needs slug, code, severity error|warning|info, summary)",
+                    f"rule {rule.slug} ({rule.code}) from {origin} uses a name the engine keeps for "
+                    "its own findings; it is not loaded",
+                    hint=f"engine codes start with {RESERVED_CODE_PREFIX}; pick another slug or code",
                 )
             )
             return
@@ -93,6 +107,42 @@ class LoadedRules:
 
     def by_code(self) -> dict[str, str]:
         return {rule.code: slug for slug, rule in self.rules.items()}
+
+
+def rule_problem(rule: type[Rule]) -> str | None:
+    """Why the loader refuses ``rule`` (as "is incomplete ...", "has bad Options ..."), or None."""
+    missing = [a for a in ("slug", "code", "severity", "summary") if not hasattr(rule, a)]
+    if (
+        missing
+        or not isinstance(rule.slug, str)
+        or not isinstance(rule.code, str)
+        or rule.severity not in ("error", "warning", "info")
+    ):
+        return "is incomplete (needs slug, code, severity error|warning|info, summary)"
+    problem = _options_problem(rule.Options)
+    return None if problem is None else f"has bad Options: {problem}"
+
+
+def _options_problem(model: object) -> str | None:
+    """Options must be checkable (unknown keys rejected) and optional (a default for each field)."""
+    if model is None:
+        return None
+    if not (isinstance(model, type) and issubclass(model, BaseModel)):
+        return "it must be a RuleOptions subclass (a pydantic model)"
+    if model.model_config.get("extra") != "forbid":
+        # Otherwise a misspelt option in the manifest would be silently ignored.
+        return "it must forbid unknown keys (derive from RuleOptions, or set extra='forbid')"
+    for name, info in model.model_fields.items():
+        if info.is_required():
+            return f"option {name!r} needs a default (a manifest need not set any option)"
+        if not info.description:
+            return f"option {name!r} needs a description (`blendspace rules` prints it)"
+    try:
+        # Options come from YAML: their defaults must be plain data `blendspace rules` can print.
+        model().model_dump(mode="json")
+    except Exception as error:
+        return f"its defaults do not validate or serialise: {type(error).__name__}: {error}"
+    return None
 
 
 def _engine_diagnostic(slug: str, message: str, hint: str | None = None) -> Diagnostic:
@@ -129,7 +179,9 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
     sys.dont_write_bytecode = True
     try:
         spec.loader.exec_module(module)
-    except (Exception, SystemExit) as error:  # a broken plugin is a diagnostic, never a crash or an exit
+    except KeyboardInterrupt:
+        raise
+    except BaseException as error:  # even sys.exit: a broken plugin is a diagnostic, never a crash or an exit
         sys.modules.pop(module_name, None)
         loaded.problems.append(_import_failure(origin, error))
         return
@@ -141,7 +193,9 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
 def _load_module_name(name: str, loaded: LoadedRules, origin: str) -> None:
     try:
         module = importlib.import_module(name)
-    except (Exception, SystemExit) as error:
+    except KeyboardInterrupt:
+        raise
+    except BaseException as error:  # SystemExit and custom BaseExceptions too: a diagnostic, not an exit
         loaded.problems.append(_import_failure(origin, error))
         return
     loaded.add_module(module, origin)
@@ -158,7 +212,9 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
         origin = f"entry point {point.name} = {point.value}"
         try:
             target = point.load()
-        except (Exception, SystemExit) as error:
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:  # as for plugin modules: a diagnostic, not an exit
             loaded.problems.append(_import_failure(origin, error))
             continue
         if isinstance(target, ModuleType):
@@ -215,11 +271,11 @@ def sample_view(
         position=position,
         measured=measured,
         normalised=normalised,
-        # Read-only: one view is shared by every rule, and no rule may change what the next sees.
-        features=MappingProxyType({str(k): float(v) for k, v in m.features.items()}),
+        # SampleView freezes its mappings (api._read_only): no rule may change what the next sees.
+        features={str(k): float(v) for k, v in m.features.items()},
         generated=generated,
         fix=fix,
-        expect=MappingProxyType({str(k): float(v) for k, v in expect.items()}) if expect else None,
+        expect={str(k): float(v) for k, v in expect.items()} if expect else None,
         frames=m.frames,
         fps=m.fps,
         meters_per_unit=m.meters_per_unit,
@@ -264,7 +320,7 @@ def _layer_view(layer: Layer) -> LayerView:
         "style",
         (axis,),
         tuple(samples),
-        mask=MappingProxyType(dict(mask.joints)) if mask is not None else None,
+        mask=mask.joints if mask is not None else None,
         mask_default=mask.default if mask is not None else 1.0,
     )
 
@@ -275,7 +331,7 @@ def space_view(space: BlendSpace) -> SpaceView:
         axes=space.axes,
         samples=_samples(space),
         triangles=tuple(space.triangles),
-        thresholds=MappingProxyType(space.manifest.model.thresholds.model_dump()),
+        thresholds=space.manifest.model.thresholds.model_dump(),
         layers=tuple(_layer_view(layer) for layer in space.layer_spaces),
     )
 
@@ -296,43 +352,73 @@ def run_rules(space: BlendSpace) -> None:
     view = space_view(space)
     by_code = loaded.by_code()
     severity_overrides = {by_code.get(key, key): value for key, value in model.rules.severity.items()}
-    known_clips = {sample.name for sample in view.samples}
-    for layer in view.layers:
-        known_clips |= {sample.name for sample in layer.samples}
+    known_clips = known_clip_names(view)
     for slug, rule_class in loaded.rules.items():
         if not _selected(slug, rule_class.code, model.rules.select, model.rules.ignore):
             continue
         override = severity_overrides.get(slug)
         if override == "off":
             continue
-        rule = rule_class(severity=override, options=options.get(slug))
+        made: list[Diagnostic] = []
         try:
+            # A fresh instance per run: options and severity are this manifest's, never a previous one's.
+            rule = rule_class(severity=override, options=options.get(slug))
             for item in rule.check(view):
-                problem = _malformed(item, known_clips)
+                problem = finding_problem(item, rule_class, known_clips)
                 if problem:
                     raise TypeError(problem)
-                findings.append(item)
-        except Exception as error:  # one broken rule must not hide the others
-            findings.append(
+                made.append(item)
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:  # one broken rule (even one calling sys.exit) must not hide the others
+            # Its findings so far are dropped too: a half-run rule's placeholders and fixes are not trusted.
+            made = [
                 _engine_diagnostic(
                     "rule-crashed",
                     f"rule {slug} ({loaded.origins[slug]}) crashed: {type(error).__name__}: {error}",
                     hint="report this to the rule's author; the other rules ran",
                 )
-            )
+            ]
+        findings += made
     findings = _apply_clip_ignores(space, findings)
     space.diagnostics = sorted(space.diagnostics + findings, key=Diagnostic.sort_key)
     space.placeholders = _unique_placeholders(space.diagnostics)
 
 
-def _malformed(item: object, known_clips: set[str]) -> str | None:
-    """Why a rule's output cannot be a finding (outputs would carry NaN or dangling names)."""
+def known_clip_names(view: SpaceView) -> set[str]:
+    """The clip names a finding on ``view`` may name: its samples and its layers' samples."""
+    names = {sample.name for sample in view.samples}
+    for layer in view.layers:
+        names |= {sample.name for sample in layer.samples}
+    return names
+
+
+def finding_problem(item: object, rule: type[Rule], known_clips: set[str]) -> str | None:
+    """Why something ``rule`` yielded cannot be a finding, or None.
+
+    Everything downstream trusts findings: JSON would carry NaN, `build` would index a missing
+    clip, sorting would fail on an unknown severity, and `ignore:` would match the wrong rule.
+    """
     if not isinstance(item, Diagnostic):
         return f"it yielded {type(item).__name__} {item!r:.60}, not a Diagnostic (use self.report)"
-    points = [item.position] if item.position is not None else []
-    points += [mark.position for mark in item.placeholders]
-    if any(not math.isfinite(value) for point in points for value in point):
-        return f"it reported a position that is not finite: {item.message!r:.80}"
+    if (item.rule, item.code) != (rule.slug, rule.code):
+        return f"it yielded a finding of {item.rule} ({item.code}), not its own (use self.report)"
+    if item.severity not in SEVERITY_ORDER:
+        return f"it yielded severity {item.severity!r}, not error, warning or info"
+    if not isinstance(item.clips, tuple) or not all(isinstance(name, str) for name in item.clips):
+        return f"its clips are {item.clips!r:.60}, not a tuple of clip names"
+    positions: list[object] = [item.position] if item.position is not None else []
+    values: list[object] = []
+    for mark in item.placeholders:
+        if not isinstance(mark, Placeholder):
+            return f"its placeholders hold {type(mark).__name__}, not Placeholder"
+        positions.append(mark.position)
+        values += mark.features.values()
+    if not all(isinstance(point, tuple) and len(point) == 2 for point in positions):
+        return f"it reported a position that is not an (x, y) pair: {item.message!r:.80}"
+    values += [value for point in positions if isinstance(point, tuple) for value in point]
+    if not all(isinstance(value, numbers.Real) and math.isfinite(value) for value in values):
+        return f"it reported a position or feature that is not a finite number: {item.message!r:.80}"
     unknown = sorted(set(item.clips) - known_clips)
     if unknown:
         return f"it named clips that are not in the space: {', '.join(unknown[:5])}"
@@ -358,8 +444,19 @@ def _check_rule_names(space: BlendSpace, loaded: LoadedRules) -> list[Diagnostic
     named += [(n, ("rules", "options", n)) for n in settings.options]
     known = sorted(set(loaded.rules) | set(loaded.by_code()))
     warnings: list[Diagnostic] = []
+    configured: dict[tuple[str | int, str], str] = {}  # (section, slug) -> the name first used
     for name, key_path in named:
-        if _rule_key(loaded, name) is not None:
+        slug = _rule_key(loaded, name)
+        if slug is not None:
+            section = key_path[1]
+            first = configured.setdefault((section, slug), name)
+            if section in ("severity", "options") and first != name:
+                # By slug and by code at once: which value wins would be an accident of order.
+                raise space.manifest.error_at(
+                    key_path,
+                    f"rules.{section}.{name}: {slug} is already configured as {first!r}",
+                    f"keep one of {first!r} and {name!r}",
+                )
             continue
         close = difflib.get_close_matches(name, known, n=1)
         hint = (f"did you mean {close[0]!r}? " if close else "") + "`blendspace rules` lists every rule"
@@ -397,10 +494,11 @@ def _rule_options(space: BlendSpace, loaded: LoadedRules) -> dict[str, RuleOptio
             validated[slug] = model.model_validate(values)
         except ValidationError as error:
             first = error.errors()[0]
-            where = tuple(str(part) for part in first["loc"])
+            where = first["loc"]  # ints stay ints: they index lists when the line is looked up
+            dotted = ".".join(str(part) for part in ("rules", "options", name, *where))
             raise manifest.error_at(
                 ("rules", "options", name, *where),
-                f"rules.options.{name}.{'.'.join(where)}: {first['msg']}",
+                f"{dotted}: {first['msg']}",
                 f"the options of {slug} are: {', '.join(model.model_fields)}",
             ) from None
     return validated

@@ -5,6 +5,7 @@
     space = space_from_positions({"idle": (0, 0), "walk": (0, 1.4), "run_left": (90, 4.0)})
     findings = run_rule(MyRule, space)
     assert [f.clips for f in findings] == [("run_left",)]
+    assert run_rule(MyRule, space, min_seconds=2.0) == []  # keyword arguments are MyRule's options
 
 `space_from_specs` does the same from procedural clips (`procedural.GaitSpec`), measuring them
 for real, so a rule sees exactly what a build would give it.
@@ -20,6 +21,7 @@ from blendspace_pipeline.api import Rule, SampleView, SpaceView
 from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.placement import Axis
+from blendspace_pipeline.rule_engine import finding_problem, known_clip_names, rule_problem
 from blendspace_pipeline.triangulate import triangulate
 
 DEFAULT_AXES = (Axis("x", "turn_rate", -180.0, 180.0, 100), Axis("y", "speed", -3.0, 6.0, 90))
@@ -94,13 +96,24 @@ def space_from_specs(
     return space_from_positions(positions, axes=axes, features=features, **options)  # type: ignore[arg-type]
 
 
-def run_rule(rule: type[Rule], space: SpaceView, **options: object) -> list[Diagnostic]:
+def run_rule(rule: type[Rule], space: SpaceView, /, **options: object) -> list[Diagnostic]:
     """Every finding of ``rule`` on ``space``, sorted like the build sorts them.
 
     Keyword arguments are the rule's typed options, validated by its `Options` model exactly as
-    the manifest's `rules: {options: ...}` would be (a pydantic ValidationError if wrong).
+    the manifest's `rules: {options: ...}` would be (a pydantic ValidationError if wrong). The rule
+    and what it yields are checked as the engine checks them, so a rule that passes here does not
+    become `plugin-error` or `rule-crashed` in a build: an AssertionError says why it would.
     """
+    problem = rule_problem(rule)
+    assert problem is None, f"the loader would refuse {rule.__name__}: it {problem}"
     if options and rule.Options is None:
         raise TypeError(f"{rule.slug} takes no options")
     chosen = rule.Options.model_validate(options) if rule.Options is not None else None
-    return sorted(rule(options=chosen).check(space), key=Diagnostic.sort_key)
+    known = known_clip_names(space)
+    findings = []
+    for item in rule(options=chosen).check(space):
+        problem = finding_problem(item, rule, known)
+        assert problem is None, f"the engine would report {rule.slug} as rule-crashed: {problem}"
+        assert isinstance(item, Diagnostic)  # for the type checker; finding_problem checked it
+        findings.append(item)
+    return sorted(findings, key=Diagnostic.sort_key)

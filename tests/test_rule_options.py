@@ -212,7 +212,7 @@ def test_misbehaving_rules_are_findings_not_crashes(
     crashed = " | ".join(str(d["message"]) for d in _rules(found, "rule-crashed"))
     for slug, why in [
         ("studio-text", "not a Diagnostic"),
-        ("studio-nan", "not finite"),
+        ("studio-nan", "not a finite number"),
         ("studio-ghost", "nobody"),
         ("studio-mutate", "does not support item assignment"),
     ]:
@@ -255,3 +255,285 @@ def test_rules_command_lists_options_and_fails_on_plugin_problems(
     monkeypatch.setenv("BLENDSPACE_RULE_PATH", str(tmp_path / "missing"))
     assert main(["rules"]) == 1
     assert "does not exist" in capsys.readouterr().out
+
+
+# -- rules the loader refuses, and findings the engine refuses ---------------------------------------
+
+BAD_OPTIONS = """
+from pydantic import BaseModel
+
+from blendspace_pipeline.api import Field, Rule, RuleOptions
+
+
+class NoDefault(RuleOptions):
+    limit: float = Field(description="no default")
+
+
+class Lenient(BaseModel):
+    limit: float = Field(1.0, description="unknown keys would be ignored")
+
+
+class Undocumented(RuleOptions):
+    limit: float = 1.0
+
+
+def _rule(slug, code, options):
+    return type(slug, (Rule,), {
+        "__doc__": "x", "slug": slug, "code": code, "severity": "warning", "summary": "x",
+        "Options": options, "__module__": __name__, "check": lambda self, space: iter(()),
+    })
+
+
+A = _rule("studio-no-default", "ST701", NoDefault)
+B = _rule("studio-lenient", "ST702", Lenient)
+C = _rule("studio-undocumented", "ST703", Undocumented)
+D = _rule("studio-dict-options", "ST704", {"limit": 1.0})
+E = _rule("rule-crashed", "ST705", None)
+F = _rule("studio-engine-code", "BS950", None)
+"""
+
+
+def test_rules_with_unusable_options_or_engine_names_are_plugin_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, found, err = _check(_project(tmp_path, plugin=BAD_OPTIONS), capsys)
+    assert code == 1 and "Traceback" not in err  # NoDefault used to crash the run (exit 3)
+    problems = " | ".join(str(d["message"]) for d in _rules(found, "plugin-error"))
+    for expected in [
+        "'limit' needs a default",
+        "must forbid unknown keys",
+        "'limit' needs a description",
+        "must be a RuleOptions subclass",
+        "rule rule-crashed (ST705)",
+        "rule studio-engine-code (BS950)",
+    ]:
+        assert expected in problems, problems
+    assert len(_rules(found, "plugin-error")) == 6
+    # None of them ran, so none of them reported anything.
+    assert not [d for d in found if str(d["rule"]).startswith("studio-")]
+
+
+ODD_FINDINGS = '''
+import math
+import sys
+
+from blendspace_pipeline.api import Diagnostic, Placeholder, Rule
+
+
+class Fatal(Rule):
+    """Invents a severity."""
+    slug, code, severity, summary = "studio-fatal", "ST801", "warning", "bad severity"
+
+    def check(self, space):
+        yield Diagnostic(rule=self.slug, code=self.code, severity="fatal", message="m")
+
+
+class Impostor(Rule):
+    """Reports as another rule."""
+    slug, code, severity, summary = "studio-impostor", "ST802", "warning", "not its own"
+
+    def check(self, space):
+        yield Diagnostic(rule="too-close", code="BS004", severity="warning", message="m")
+
+
+class ListClips(Rule):
+    """Names clips in a list."""
+    slug, code, severity, summary = "studio-list", "ST803", "warning", "list of clips"
+
+    def check(self, space):
+        yield Diagnostic(rule=self.slug, code=self.code, severity="warning", message="m", clips=["walk"])
+
+
+class NanPlaceholder(Rule):
+    """A placeholder whose features are NaN."""
+    slug, code, severity, summary = "studio-nan-mark", "ST804", "warning", "NaN placeholder"
+
+    def check(self, space):
+        mark = Placeholder((0.0, 0.0), "suggested", self.slug, "r", {"speed": math.inf})
+        yield self.report("m", placeholders=[mark])
+
+
+class Exits(Rule):
+    """Calls sys.exit while checking."""
+    slug, code, severity, summary = "studio-exits", "ST805", "warning", "exits"
+
+    def check(self, space):
+        sys.exit(4)
+
+
+class HalfWay(Rule):
+    """Reports once, then crashes."""
+    slug, code, severity, summary = "studio-half-way", "ST806", "warning", "crashes half way"
+
+    def check(self, space):
+        yield self.report("first", clips=["walk"])
+        raise RuntimeError("boom")
+'''
+
+
+def test_findings_the_outputs_cannot_hold_are_rule_crashed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, found, err = _check(_project(tmp_path, plugin=ODD_FINDINGS), capsys)
+    assert code == 1 and "Traceback" not in err  # "fatal" used to fail sorting (exit 3)
+    crashed = {str(d["message"]).split()[1]: str(d["message"]) for d in _rules(found, "rule-crashed")}
+    assert "severity 'fatal'" in crashed["studio-fatal"]
+    assert "a finding of too-close (BS004), not its own" in crashed["studio-impostor"]
+    assert "not a tuple of clip names" in crashed["studio-list"]
+    assert "not a finite number" in crashed["studio-nan-mark"]
+    assert "SystemExit: 4" in crashed["studio-exits"]  # used to end the run silently
+    assert "RuntimeError: boom" in crashed["studio-half-way"]
+    # A crashed rule's findings so far are dropped with it.
+    assert not [d for d in found if str(d["rule"]).startswith("studio-")]
+    assert not [d for d in _rules(found, "too-close") if d["message"] == "m"]
+
+
+def test_build_survives_rules_that_report_nan_or_unknown_clips(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    manifest = _project(tmp_path, plugin=MISBEHAVING)
+    code = main(["build", str(manifest), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err, err
+    report = json.loads(next((tmp_path / "out").rglob("*.json")).read_text(encoding="utf-8"))
+    assert "NaN" not in json.dumps(report)
+
+
+def test_a_custom_base_exception_on_import_is_a_plugin_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    plugin = "class Stop(BaseException):\n    pass\n\n\nraise Stop('no')\n"
+    code, found, _ = _check(_project(tmp_path, plugin=plugin), capsys)
+    assert code == 1
+    [problem] = _rules(found, "plugin-error")
+    assert "Stop: no" in str(problem["message"])
+
+
+# -- options in the manifest -------------------------------------------------------------------------
+
+LISTED = '''
+from typing import Literal
+
+from pydantic import model_validator
+
+from blendspace_pipeline.api import Field, Rule, RuleOptions
+
+
+class ListedOptions(RuleOptions):
+    names: list[str] = Field(default_factory=list, description="Clips to look at.")
+    mode: Literal["strict", "loose"] = Field("loose", description="How hard to look.")
+    low: float = Field(0.0, description="Lower bound.")
+    high: float = Field(1.0, description="Upper bound.")
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if self.low > self.high:
+            raise ValueError("low must not exceed high")
+        return self
+
+
+class Listed(Rule):
+    """Looks at the named clips."""
+    slug, code, severity, summary = "studio-listed", "ST901", "info", "named clips"
+    Options = ListedOptions
+
+    def check(self, space):
+        for name in self.options.names:
+            yield self.report(f"{name} ({self.options.mode})", clips=[name])
+'''
+
+
+def test_an_option_error_inside_a_list_points_at_the_item(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    extra = "rules:\n  options:\n    studio-listed:\n      names:\n        - walk\n        - [idle]\n"
+    manifest = _project(tmp_path, extra, plugin=LISTED)
+    code, err = _error(manifest, capsys)
+    assert code == 2
+    assert f"{manifest}:11:11: rules.options.studio-listed.names.1: Input should be a valid string" in err
+
+
+def test_a_whole_options_error_has_no_dangling_dot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    manifest = _project(tmp_path, "rules:\n  options:\n    studio-listed: {low: 2, high: 1}\n", plugin=LISTED)
+    code, err = _error(manifest, capsys)
+    assert code == 2
+    assert f"{manifest}:8:5: rules.options.studio-listed: Value error, low must not exceed high" in err
+
+
+@pytest.mark.parametrize("section", ["options", "severity"])
+def test_a_rule_configured_by_slug_and_by_code_is_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], section: str
+) -> None:
+    value = "{names: [walk]}" if section == "options" else "info"
+    other = "{names: [idle]}" if section == "options" else "error"
+    extra = f"rules:\n  {section}:\n    studio-listed: {value}\n    ST901: {other}\n"
+    manifest = _project(tmp_path, extra, plugin=LISTED)
+    code, err = _error(manifest, capsys)
+    assert code == 2
+    assert f"{manifest}:9:5: rules.{section}.ST901: studio-listed is already configured" in err
+
+
+def test_options_do_not_leak_between_manifests(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    configured = _project(tmp_path / "a", "rules:\n  options:\n    studio-listed: {names: [walk]}\n", LISTED)
+    plain = _project(tmp_path / "b", plugin=LISTED)
+    _, first, _ = _check(configured, capsys)
+    _, second, _ = _check(plain, capsys)
+    assert [d["clips"] for d in _rules(first, "studio-listed")] == [["walk"]]
+    assert _rules(second, "studio-listed") == []
+
+
+def test_rules_command_prints_option_types_and_json_defaults(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "listed.py").write_text(textwrap.dedent(LISTED), encoding="utf-8")
+    monkeypatch.setenv("BLENDSPACE_RULE_PATH", str(tmp_path))
+    assert main(["rules", "--format", "json"]) == 0
+    rows = {row["slug"]: row for row in json.loads(capsys.readouterr().out)["rules"]}
+    options = {o["name"]: (o["type"], o["default"]) for o in rows["studio-listed"]["options"]}
+    assert options["names"] == ("list[str]", [])  # a default_factory is listed by its value
+    assert options["mode"] == ("Literal['strict', 'loose']", "loose")
+    assert main(["rules"]) == 0
+    assert "option mode: Literal['strict', 'loose'] = \"loose\"  How hard to look." in capsys.readouterr().out
+
+
+# -- the rule-author harness and the views ----------------------------------------------------------
+
+
+def test_harness_views_are_read_only() -> None:
+    from blendspace_pipeline.testing import space_from_positions
+
+    features = {"walk": {"duration": 0.5}}
+    space = space_from_positions({"idle": (0, 0), "walk": (0, 1.4), "run": (0, 4.0)}, features=features)
+    with pytest.raises(TypeError):
+        space.samples[1].features["duration"] = 9.0  # type: ignore[index]
+    with pytest.raises(TypeError):
+        space.thresholds["too_close"] = 0.0  # type: ignore[index]
+    features["walk"]["duration"] = 9.0  # the caller's dict is copied, not shared
+    assert space.sample("walk").features["duration"] == 0.5
+
+
+def test_harness_takes_options_and_checks_like_the_engine(tmp_path: Path) -> None:
+    import importlib.util
+
+    from blendspace_pipeline.testing import run_rule, space_from_positions
+
+    path = tmp_path / "odd_rules.py"
+    path.write_text(textwrap.dedent(ODD_FINDINGS + LISTED + BAD_OPTIONS), encoding="utf-8")
+    spec = importlib.util.spec_from_file_location("odd_rules", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    space = space_from_positions({"idle": (0, 0), "walk": (0, 1.4), "run": (0, 4.0)})
+
+    [finding] = run_rule(module.Listed, space, names=["walk"], mode="strict")
+    assert finding.message == "walk (strict)"
+    with pytest.raises(ValueError, match="valid string"):
+        run_rule(module.Listed, space, names=[1])
+    with pytest.raises(AssertionError, match="rule-crashed: it yielded severity 'fatal'"):
+        run_rule(module.Fatal, space)
+    with pytest.raises(AssertionError, match=r"loader would refuse .*'limit' needs a default"):
+        run_rule(module.A, space)
+    with pytest.raises(TypeError, match="takes ListedOptions"):
+        module.Listed(options=module.NoDefault.model_construct())

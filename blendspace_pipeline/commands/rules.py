@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
             )
             for option in row["options"]:
                 sys.stdout.write(
-                    f"{'':<6} option {option['name']}: {option['type']} = {option['default']!r}"
+                    f"{'':<6} option {option['name']}: {option['type']} = {json.dumps(option['default'])}"
                     f"  {option['description']}\n"
                 )
         for problem in loaded.problems:
@@ -57,12 +57,21 @@ def _options(rule: type[Rule]) -> list[dict[str, Any]]:
     """A rule's typed options (`rules: {options: {slug: {...}}}`): name, type, default, description."""
     if rule.Options is None:
         return []
+    # The loader checked that the defaults dump to JSON (options are written in YAML).
+    defaults = rule.Options().model_dump(mode="json")
     return [
         {
             "name": name,
-            "type": getattr(info.annotation, "__name__", str(info.annotation)),
-            "default": info.get_default(call_default_factory=True),
+            "type": _type_name(info.annotation),
+            "default": defaults[name],
             "description": info.description or "",
         }
         for name, info in rule.Options.model_fields.items()
     ]
+
+
+def _type_name(annotation: object) -> str:
+    """`float`, `list[str]`, `Literal['a', 'b']`: how the type reads in a rule's source."""
+    if isinstance(annotation, type):
+        return annotation.__name__  # a plain class (a generic alias like list[str] is not a type)
+    return str(annotation).replace("typing.", "")
