@@ -149,7 +149,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
-    cycle = detect_cycle(used, settings)
+    cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
     return Measurement(
         features=features,
         meters_per_unit=meters_per_unit,

@@ -85,13 +85,21 @@ def foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     return feet[0], feet[1]
 
 
-def foot_signal(clip: Clip, settings: RigSettings) -> tuple[FloatArray, float, tuple[int, int]] | None:
-    """(left foot minus right foot along the facing on every frame, mean leg length, feet); file units."""
+Posed = tuple[FloatArray, FloatArray]  # (world rotations, world positions) of every frame
+
+
+def foot_signal(
+    clip: Clip, settings: RigSettings, posed: Posed | None = None
+) -> tuple[FloatArray, float, tuple[int, int]] | None:
+    """(left foot minus right foot along the facing on every frame, mean leg length, feet); file units.
+
+    ``posed`` is the clip's forward kinematics when the caller has it already (`measure` does).
+    """
     feet = foot_joints(clip, settings)
     hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
     if feet is None or hips is None:
         return None
-    world_rot, world_pos = forward_kinematics(clip)
+    world_rot, world_pos = posed if posed is not None else forward_kinematics(clip)
     up_axis, _ = resolve_up(clip, world_pos, settings)
     up = np.array([0.0, 0.0, 1.0]) if up_axis == "z" else np.array([0.0, 1.0, 0.0])
     forward = resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos)
@@ -221,12 +229,12 @@ def _loop_length(signal: FloatArray, fps: float, amplitude: float) -> tuple[floa
     return frames / fps, True
 
 
-def detect_cycle(clip: Clip, settings: RigSettings) -> GaitCycle | None:
+def detect_cycle(clip: Clip, settings: RigSettings, posed: Posed | None = None) -> GaitCycle | None:
     """The clip's stride, or None when it has no clear one (idle, turn on the spot, a shuffle
-    shorter than a stride, a rig without recognisable legs)."""
+    shorter than a stride, a rig without recognisable legs). ``posed``: see `foot_signal`."""
     if clip.frame_count < 8:
         return None
-    found = foot_signal(clip, settings)
+    found = foot_signal(clip, settings, posed)
     if found is None:
         return None
     signal, leg, feet = found
