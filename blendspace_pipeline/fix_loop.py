@@ -19,11 +19,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from blendspace_pipeline.clip import Clip
 from blendspace_pipeline.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
 from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.geometry import normalise
 from blendspace_pipeline.manifest.models import ClipEntry, MirrorTokens
 from blendspace_pipeline.measure import measure, trim
 from blendspace_pipeline.measure_stage import MeasuredClip, rig_settings
@@ -359,11 +362,8 @@ class _Fixer:
 
 def _normalise(space: BlendSpace, point: Sequence[float]) -> tuple[float, float]:
     """``point`` in axis units -> the 0..100 normalised space the thresholds are measured in."""
-    x_axis, y_axis = space.axes
-    return (
-        (point[0] - x_axis.minimum) / (x_axis.maximum - x_axis.minimum) * 100.0,
-        (point[1] - y_axis.minimum) / (y_axis.maximum - y_axis.minimum) * 100.0,
-    )
+    x, y = normalise(np.asarray(point, dtype=np.float64), space.axis_ranges())
+    return float(x), float(y)
 
 
 def _distance(a: Sequence[float], b: Sequence[float]) -> float:
