@@ -338,6 +338,7 @@ class _Fixer:
             if name in by_name:
                 _mark(by_name[name], generated.rule)
         rebuilt.layer_spaces = space.layer_spaces
+        rebuilt.rules = space.rules
         finish_analysis(rebuilt)
         return rebuilt
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,6 +22,9 @@ from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.measure_stage import MeasuredClip, measure_files
 from blendspace_pipeline.placement import Axis, place
 from blendspace_pipeline.triangulate import triangulate
+
+if TYPE_CHECKING:
+    from blendspace_pipeline.rule_engine import LoadedRules
 
 Progress = Callable[[int, int, str], None]
 
@@ -55,6 +59,9 @@ class BlendSpace:
     diagnostics: list[Diagnostic] = field(default_factory=list)
     placeholders: list[Placeholder] = field(default_factory=list)
     layer_spaces: list[Layer] = field(default_factory=list)
+    # The rules loaded for this manifest (plugins included), kept so that the fix loop's rounds
+    # and the SARIF rule catalogue do not import every plugin again.
+    rules: LoadedRules | None = None
 
     @property
     def name(self) -> str:

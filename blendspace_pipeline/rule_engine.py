@@ -345,7 +345,7 @@ def _selected(slug: str, code: str, select: list[str], ignore: list[str]) -> boo
 def run_rules(space: BlendSpace) -> None:
     """Run every selected rule, apply severities and suppressions, and store the results."""
     model = space.manifest.model
-    loaded = load_rules(model.plugins, space.manifest.directory)
+    loaded = space.rules = space.rules or load_rules(model.plugins, space.manifest.directory)
     findings: list[Diagnostic] = list(loaded.problems)
     findings += _check_rule_names(space, loaded)
     options = _rule_options(space, loaded)

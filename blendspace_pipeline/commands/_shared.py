@@ -134,7 +134,8 @@ def rule_catalogue(spaces: Sequence[BlendSpace]) -> dict[str, RuleInfo]:
     for space in spaces:
         for each in _spaces(space):
             manifest = each.manifest
-            for slug, rule in load_rules(manifest.model.plugins, manifest.directory).rules.items():
+            loaded = each.rules or load_rules(manifest.model.plugins, manifest.directory)
+            for slug, rule in loaded.rules.items():
                 doc = inspect.cleandoc(rule.documentation())
                 catalogue.setdefault(slug, RuleInfo(rule.code, rule.summary, doc, rule.severity))
     return catalogue
@@ -147,6 +148,6 @@ def emit(
     extra: dict[str, object] | None = None,
     spaces: Sequence[BlendSpace] = (),
 ) -> None:
-    # Only SARIF describes rules; loading them again (plugins included) is not free.
+    # Only SARIF describes rules (the ones each space ran with).
     rules = rule_catalogue(spaces) if fmt == "sarif" else None
     sys.stdout.write(render(fmt, diagnostics, summary=summary, extra=extra, rules=rules))
