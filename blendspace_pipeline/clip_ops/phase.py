@@ -64,6 +64,23 @@ def foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     if hips is None:
         return None
     skeleton = clip.skeleton
+    feet = []
+    for hip in hips:
+        below = skeleton.descendants(hip)
+        if not below:
+            return None
+        named = [j for j in below if any(b in split_side(skeleton.names[j])[1] for b in _FOOT_BASES)]
+        if named:
+            feet.append(named[0])
+            continue
+        rest_pos = _rest_positions(clip)  # only rigs without a named foot pay for posing the rest pose
+        feet.append(max(below, key=lambda j: np.linalg.norm(rest_pos[j] - rest_pos[hip])))
+    return feet[0], feet[1]
+
+
+def _rest_positions(clip: Clip) -> FloatArray:
+    """World joint positions of ``clip``'s rest pose."""
+    skeleton = clip.skeleton
     rest = Clip(
         clip.name,
         clip.source,
@@ -72,17 +89,8 @@ def foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
         skeleton.rest_translations[None].copy(),
         clip.fps,
     )
-    rest_pos = forward_kinematics(rest)[1][0]
-    feet = []
-    for hip in hips:
-        below = skeleton.descendants(hip)
-        if not below:
-            return None
-        named = [j for j in below if any(b in split_side(skeleton.names[j])[1] for b in _FOOT_BASES)]
-        feet.append(
-            named[0] if named else max(below, key=lambda j: np.linalg.norm(rest_pos[j] - rest_pos[hip]))
-        )
-    return feet[0], feet[1]
+    positions: FloatArray = forward_kinematics(rest)[1][0]
+    return positions
 
 
 Posed = tuple[FloatArray, FloatArray]  # (world rotations, world positions) of every frame
