@@ -357,7 +357,8 @@ def test_unity_export_is_a_controller_with_a_freeform_cartesian_tree() -> None:
     assert (tree["m_BlendParameter"], tree["m_BlendParameterY"]) == ("turn_rate", "speed")
     # Unity's positive yaw turns right: turn rates change sign, speeds stay in m/s.
     positions = [(c["m_Position"]["x"], c["m_Position"]["y"]) for c in tree["m_Childs"]]
-    assert positions == pytest.approx([(-x, y) for x, y in LAYOUT.values()])
+    # Compare pair by pair: pytest.approx does not take nested sequences (pytest >= 9.2).
+    assert positions == [pytest.approx((-x, y)) for x, y in LAYOUT.values()]
     assert any("gradient bands" in note for note in result.notes)
     assert any("turn_rate flipped" in note for note in result.notes)
 
