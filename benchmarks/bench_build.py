@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from blendspace_pipeline.cli import main as cli_main
-from blendspace_pipeline.detect import RigSettings
-from blendspace_pipeline.measure_stage import measure_file
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline.measure_stage import measure_file
 
 
 def write_library(folder: Path, count: int, fmt: str) -> list[Path]:

@@ -24,8 +24,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from blendspace_pipeline.clip import forward_kinematics
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.clip import forward_kinematics
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers.bvh import read
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from blendspace_pipeline.cli import main as cli_main
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 

@@ -20,10 +20,16 @@ from typing import Any
 
 import numpy as np
 
-from blendspace_pipeline.document import AxisDoc, BlendSpaceDocument, DiagnosticDoc, PlaceholderDoc, SampleDoc
-from blendspace_pipeline.geometry import AxisRange, normalise
 from blendspace_pipeline.report import write_html_report, write_png
-from blendspace_pipeline.triangulate import triangulate
+from blendspace_pipeline.space.document import (
+    AxisDoc,
+    BlendSpaceDocument,
+    DiagnosticDoc,
+    PlaceholderDoc,
+    SampleDoc,
+)
+from blendspace_pipeline.space.geometry import AxisRange, normalise
+from blendspace_pipeline.space.triangulate import triangulate
 
 AXES = [
     AxisDoc(name="x", feature="turn_rate", min=-180, max=180, divisions=100, unit="deg/s"),

@@ -37,7 +37,7 @@ from typing import ClassVar, TypeVar
 from pydantic import BaseModel, ConfigDict, Field
 
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
-from blendspace_pipeline.placement import Axis
+from blendspace_pipeline.space.placement import Axis
 
 __all__ = [
     "Axis",
@@ -96,7 +96,7 @@ class SampleView:
 
 @dataclass(frozen=True)
 class LayerView:
-    """A beta or style layer of the space, read-only (see `blendspace_pipeline.layers`).
+    """A beta or style layer of the space, read-only (see `blendspace_pipeline.pipeline.layers`).
 
     A beta layer has the two axes of its own manifest and its samples placed on them. A style
     layer has one axis (a main-space axis, normally speed); its samples' positions are

@@ -18,11 +18,11 @@ from collections.abc import Iterable, Mapping, Sequence
 import numpy as np
 
 from blendspace_pipeline.api import Rule, SampleView, SpaceView
-from blendspace_pipeline.detect import RigSettings
+from blendspace_pipeline.checks.rule_engine import finding_problem, known_clip_names, rule_problem
 from blendspace_pipeline.diagnostics import Diagnostic
-from blendspace_pipeline.placement import Axis
-from blendspace_pipeline.rule_engine import finding_problem, known_clip_names, rule_problem
-from blendspace_pipeline.triangulate import triangulate
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.space.placement import Axis
+from blendspace_pipeline.space.triangulate import triangulate
 
 DEFAULT_AXES = (Axis("x", "turn_rate", -180.0, 180.0, 100), Axis("y", "speed", -3.0, 6.0, 90))
 DEFAULT_THRESHOLDS = {"crossing_axis": 5.0, "too_close": 8.0, "acute_angle": 15.0, "misalignment": 3.0}
@@ -83,8 +83,8 @@ def space_from_specs(
     specs: Iterable[object], *, axes: tuple[Axis, Axis] = DEFAULT_AXES, **options: object
 ) -> SpaceView:
     """Like `space_from_positions`, from procedural clips measured for real."""
-    from blendspace_pipeline.measure import measure
-    from blendspace_pipeline.procedural import GaitSpec, generate
+    from blendspace_pipeline.motion.measure import measure
+    from blendspace_pipeline.motion.procedural import GaitSpec, generate
 
     positions: dict[str, tuple[float, float]] = {}
     features: dict[str, dict[str, float]] = {}

@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 HERE = Path(__file__).resolve().parent

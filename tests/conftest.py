@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from blendspace_pipeline.procedural import GaitSpec
+from blendspace_pipeline.motion.procedural import GaitSpec
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"

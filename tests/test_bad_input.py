@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from pxr import Sdf, Usd, UsdGeom
 
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 

@@ -17,7 +17,7 @@ import pytest
 from pxr import Usd
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 REPO = Path(__file__).resolve().parents[1]

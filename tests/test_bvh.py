@@ -10,11 +10,11 @@ import pytest
 from conftest import shared_data
 from scipy.spatial.transform import Rotation
 
-from blendspace_pipeline.clip import Clip, forward_kinematics
-from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers.bvh import read, read_header
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 

@@ -23,10 +23,11 @@ import jsonschema
 import pytest
 from conftest import tidy_set
 
-from blendspace_pipeline import measure_stage, readers
+from blendspace_pipeline import readers
 from blendspace_pipeline.api import Rule, iter_rule_classes
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline import measure_stage
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 REPO = Path(__file__).resolve().parents[1]

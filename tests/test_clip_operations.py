@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from conftest import shared_data
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton, forward_kinematics
-from blendspace_pipeline.clip_ops import (
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton, forward_kinematics
+from blendspace_pipeline.motion.clip_ops import (
     IncompatibleClips,
     blend_clips,
     detect_cycle,
@@ -19,16 +19,16 @@ from blendspace_pipeline.clip_ops import (
     mirror_pairs,
     straighten_clip,
 )
-from blendspace_pipeline.clip_ops.root_motion import (
+from blendspace_pipeline.motion.clip_ops.root_motion import (
     compose,
     decompose,
     ground_basis,
     integrate,
     step_velocities,
 )
-from blendspace_pipeline.detect import RigSettings
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
 
 SETTINGS = RigSettings()

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from conftest import shared_data
 
-from blendspace_pipeline.clip import Clip, forward_kinematics, validate_clip
-from blendspace_pipeline.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
-from blendspace_pipeline.clip_ops.blend import resample_linear, resample_quaternions
-from blendspace_pipeline.clip_ops.phase import detect_cycle, foot_signal, frames_at_phases
-from blendspace_pipeline.detect import RigSettings, detect_tpose_frame
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics, validate_clip
+from blendspace_pipeline.motion.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
+from blendspace_pipeline.motion.clip_ops.blend import resample_linear, resample_quaternions
+from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal, frames_at_phases
+from blendspace_pipeline.motion.detect import RigSettings, detect_tpose_frame
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
 
 SETTINGS = RigSettings()

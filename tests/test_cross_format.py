@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from blendspace_pipeline.detect import RigSettings
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 from blendspace_pipeline.writers.gltf import write_gltf_clip

@@ -12,13 +12,13 @@ import pytest
 from scipy.spatial import ConvexHull, Delaunay
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.evaluate import Evaluation, evaluate
-from blendspace_pipeline.layers_doc import StyleLayerDoc, parse_layer_list, parse_layers
-from blendspace_pipeline.pipeline import analyse
-from blendspace_pipeline.procedural import GaitSpec, generate
-from blendspace_pipeline.to_document import to_document
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline.analysis import analyse
+from blendspace_pipeline.pipeline.to_document import to_document
+from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.space.evaluate import Evaluation, evaluate
+from blendspace_pipeline.space.layers_doc import StyleLayerDoc, parse_layer_list, parse_layers
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 
 TURN_SPEED = (("turn_rate", -180.0, 180.0, "deg/s"), ("speed", -3.0, 6.0, "m/s"))

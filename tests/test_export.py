@@ -22,9 +22,9 @@ from ruamel.yaml.resolver import VersionedResolver
 from scipy.spatial import Delaunay
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.exporters import export
+from blendspace_pipeline.space.document import BlendSpaceDocument
 
 # --- documents ------------------------------------------------------------------------------
 

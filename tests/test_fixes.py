@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.detect import RigSettings
-from blendspace_pipeline.fix_loop import mirrored_name
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline.fix_loop import mirrored_name
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
@@ -200,7 +200,7 @@ def test_generated_clip_plays_the_same_motion_in_usd(tmp_path: Path) -> None:
 
 
 def test_bvh_sources_get_bvh_generated_clips_with_the_same_motion(tmp_path: Path) -> None:
-    from blendspace_pipeline.clip import forward_kinematics
+    from blendspace_pipeline.motion.clip import forward_kinematics
     from blendspace_pipeline.writers.bvh import write_bvh_clip
 
     folder = tmp_path / "clips"

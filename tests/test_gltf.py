@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, forward_kinematics
-from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.gltf import read
 from blendspace_pipeline.writers.gltf import write_gltf_clip

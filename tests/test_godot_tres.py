@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.measure import measure
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.godot_tres import read
 from tests.conftest import shared_data

@@ -9,10 +9,10 @@ import pytest
 from pxr import Usd
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.evaluate import evaluate
-from blendspace_pipeline.layers_doc import read_document
-from blendspace_pipeline.pipeline import analyse
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline.analysis import analyse
+from blendspace_pipeline.space.evaluate import evaluate
+from blendspace_pipeline.space.layers_doc import read_document
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 MAIN = (

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blendspace_pipeline.detect import RigSettings
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.measure import measure
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 
 AUTO = RigSettings()
 SPEED_TOLERANCE = 0.03  # relative, as the issue asks
@@ -174,7 +174,7 @@ def test_idle_is_in_place() -> None:
 
 def test_wrapped_yaw_channel_through_euler_angles() -> None:
     """A root yaw that wraps from +180 to -180 in Euler channels must not read as a spin back."""
-    from blendspace_pipeline import quaternions as quat
+    from blendspace_pipeline.motion import quaternions as quat
 
     clip = generate(GaitSpec("wrap", speed=1.0, turn_rate=90.0, duration=2.0, start_heading=120.0))
     hips = clip.skeleton.index("Hips")

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from blendspace_pipeline.pipeline import analyse
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 SPECS = (

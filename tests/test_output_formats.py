@@ -18,8 +18,8 @@ from typing import Any
 import jsonschema
 import pytest
 
+from blendspace_pipeline.checks.output_formats import RuleInfo, artifact_location, as_github, as_sarif
 from blendspace_pipeline.diagnostics import Diagnostic
-from blendspace_pipeline.output_formats import RuleInfo, artifact_location, as_github, as_sarif
 
 ROOT = PurePosixPath("/work/assets")
 

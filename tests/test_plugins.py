@@ -25,9 +25,9 @@ from typing import Any
 import pytest
 from conftest import tidy_set
 
+from blendspace_pipeline.checks.rule_engine import ENGINE_CODES, ENTRY_POINT_GROUP, RULE_PATH_VARIABLE
 from blendspace_pipeline.cli import build_parser, main
-from blendspace_pipeline.procedural import GaitSpec, generate
-from blendspace_pipeline.rule_engine import ENGINE_CODES, ENTRY_POINT_GROUP, RULE_PATH_VARIABLE
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 REPO = Path(__file__).resolve().parents[1]

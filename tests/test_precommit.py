@@ -25,7 +25,7 @@ import pytest
 from conftest import tidy_set
 from ruamel.yaml import YAML
 
-from blendspace_pipeline.procedural import generate
+from blendspace_pipeline.motion.procedural import generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 REPO = Path(__file__).resolve().parents[1]

@@ -12,7 +12,7 @@ import pytest
 from conftest import SHARED_DATA, shared_data
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.pipeline import analyse
+from blendspace_pipeline.pipeline.analysis import analyse
 
 
 def _manifest(tmp_path: Path, body: str) -> Path:
@@ -73,8 +73,8 @@ def test_godot_tps_demo_strafe_space(tmp_path: Path) -> None:
 
 
 def test_godot_walk_and_run_speeds() -> None:
-    from blendspace_pipeline.detect import RigSettings
-    from blendspace_pipeline.measure import measure
+    from blendspace_pipeline.motion.detect import RigSettings
+    from blendspace_pipeline.motion.measure import measure
     from blendspace_pipeline.readers import read_clips
 
     walk = read_clips(shared_data("godot-tps-demo", "walking_nogun-cycle.tres"))[0]
@@ -136,8 +136,8 @@ def test_cmu_walk_with_range_and_units(tmp_path: Path) -> None:
 def test_godot_mirrored_strafe_rereads_where_it_was_placed(tmp_path: Path) -> None:
     """The mirrored strafe_right is written as USD; read back, it must measure at its placed
     position (its flat Godot skeleton survives the file, so the root track still decides)."""
-    from blendspace_pipeline.detect import RigSettings
-    from blendspace_pipeline.measure import measure
+    from blendspace_pipeline.motion.detect import RigSettings
+    from blendspace_pipeline.motion.measure import measure
     from blendspace_pipeline.readers import read_clips
 
     shared_data("godot-tps-demo", "strafe_left-cycle.tres")

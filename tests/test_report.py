@@ -11,7 +11,10 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from blendspace_pipeline.document import (
+from blendspace_pipeline.report import write_html_report, write_png
+from blendspace_pipeline.report.diagram import COLOURS, build_scene, coverage_percent
+from blendspace_pipeline.report.html import render_html
+from blendspace_pipeline.space.document import (
     AxisDoc,
     BlendSpaceDocument,
     BuildInfoDoc,
@@ -20,10 +23,7 @@ from blendspace_pipeline.document import (
     PlaceholderDoc,
     SampleDoc,
 )
-from blendspace_pipeline.geometry import AxisRange, normalise
-from blendspace_pipeline.report import write_html_report, write_png
-from blendspace_pipeline.report.diagram import COLOURS, build_scene, coverage_percent
-from blendspace_pipeline.report.html import render_html
+from blendspace_pipeline.space.geometry import AxisRange, normalise
 
 TRICKY = 'run <fast> & "hard"'
 X_AXIS = AxisDoc(name="x", feature="turn_rate", min=-180, max=180, divisions=72, unit="deg/s")

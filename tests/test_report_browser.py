@@ -121,7 +121,7 @@ SAMPLE_PROJECT = Path(__file__).resolve().parents[1] / "sample_project"
 
 def test_sample_project_report_in_the_browser(browser: Any, tmp_path: Path) -> None:
     """The issue's end-to-end check: build the sample project, open its report, count and click."""
-    from blendspace_pipeline.build import build
+    from blendspace_pipeline.pipeline.outputs import build
 
     # The README's main job: the main manifest (lateral.yaml beside it is its beta layer).
     result = build(SAMPLE_PROJECT / "manifest.yaml", tmp_path / "build")

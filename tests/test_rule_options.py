@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.procedural import GaitSpec, generate
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 SPECS = (

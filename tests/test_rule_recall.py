@@ -31,7 +31,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from blendspace_pipeline.api import Rule, SpaceView
 from blendspace_pipeline.diagnostics import Diagnostic
-from blendspace_pipeline.placement import Axis
+from blendspace_pipeline.space.placement import Axis
 from blendspace_pipeline.testing import run_rule, space_from_positions
 
 SPACES = 200

@@ -15,8 +15,8 @@ from blendspace_pipeline.rules.outside_axis_range import OutsideAxisRange
 from blendspace_pipeline.rules.too_close import TooClose
 from blendspace_pipeline.rules.uncovered_area import UncoveredArea, covered_fraction
 
-from blendspace_pipeline.placement import Axis
-from blendspace_pipeline.procedural import GaitSpec
+from blendspace_pipeline.motion.procedural import GaitSpec
+from blendspace_pipeline.space.placement import Axis
 from blendspace_pipeline.testing import run_rule, space_from_positions, space_from_specs
 
 KEY_SET = {  # idle, turn in place +-90, forward and backward at turn 0, turning walks

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from blendspace_pipeline.document import AxisDoc, BlendSpaceDocument, SampleDoc
-from blendspace_pipeline.geometry import AxisRange
 from blendspace_pipeline.report.trajectory_error import document_trajectory_error, trajectory_error
+from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument, SampleDoc
+from blendspace_pipeline.space.geometry import AxisRange
 
 SQUARE = (AxisRange(0.0, 100.0), AxisRange(0.0, 100.0))
 

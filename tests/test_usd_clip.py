@@ -9,9 +9,9 @@ import pytest
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, UsdUtils, UsdValidation, Vt
 from scipy.spatial.transform import Rotation
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton, forward_kinematics
 from blendspace_pipeline.errors import ClipReadError
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton, forward_kinematics
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.usd import read
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
@@ -435,8 +435,8 @@ def test_godot_clip_measures_the_same_after_a_usd_round_trip(tmp_path: Path) -> 
     generated clip is) and read back, it must still be, not switch to the hip line."""
     from conftest import shared_data
 
-    from blendspace_pipeline.detect import RigSettings
-    from blendspace_pipeline.measure import measure
+    from blendspace_pipeline.motion.detect import RigSettings
+    from blendspace_pipeline.motion.measure import measure
 
     [source] = read_clips(shared_data("godot-tps-demo", "strafe_left-cycle.tres"))
     path = tmp_path / "strafe_left.usda"

@@ -1,0 +1,1 @@
+"""The `blendspace` sub-commands: one module each, exposing HELP, add_arguments and run."""

@@ -8,12 +8,11 @@ import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
+from blendspace_pipeline.checks.rule_engine import ENGINE_CODES, loaded_rules_of
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
-from blendspace_pipeline.layers import BetaSpace
-from blendspace_pipeline.output_formats import FORMATS, RuleInfo, render
-from blendspace_pipeline.pipeline import BlendSpace
-from blendspace_pipeline.rule_engine import ENGINE_CODES, load_rules
+from blendspace_pipeline.space.model import BetaSpace, BlendSpace
 
 INVALID_INPUT = "invalid-input"
 # The engine's own codes: BS900-BS902 in rule_engine, BS903/BS904 in fix_loop; this is the next.
@@ -133,8 +132,7 @@ def rule_catalogue(spaces: Sequence[BlendSpace]) -> dict[str, RuleInfo]:
     catalogue = dict(ENGINE_RULES)
     for space in spaces:
         for each in _spaces(space):
-            manifest = each.manifest
-            loaded = each.rules or load_rules(manifest.model.plugins, manifest.directory)
+            loaded = loaded_rules_of(each)
             for slug, rule in loaded.rules.items():
                 doc = inspect.cleandoc(rule.documentation())
                 catalogue.setdefault(slug, RuleInfo(rule.code, rule.summary, doc, rule.severity))

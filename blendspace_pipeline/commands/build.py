@@ -5,12 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from blendspace_pipeline.build import build
 from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_INPUT, InputError, UsageError
-from blendspace_pipeline.pipeline import BlendSpace
-from blendspace_pipeline.progress import terminal_progress
+from blendspace_pipeline.pipeline.outputs import build
+from blendspace_pipeline.pipeline.progress import terminal_progress
+from blendspace_pipeline.space.model import BlendSpace
 
 HELP = "build blend-space assets (JSON, USD, HTML report, PNG) from manifest(s)"
 

@@ -7,8 +7,9 @@ import argparse
 from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_INPUT, InputError
-from blendspace_pipeline.pipeline import BlendSpace, analyse
-from blendspace_pipeline.progress import terminal_progress
+from blendspace_pipeline.pipeline.analysis import analyse
+from blendspace_pipeline.pipeline.progress import terminal_progress
+from blendspace_pipeline.space.model import BlendSpace
 
 HELP = "analyse manifest(s) and run the rules without writing anything (for CI and pre-commit)"
 

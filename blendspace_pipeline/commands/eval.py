@@ -13,10 +13,10 @@ import math
 import sys
 from pathlib import Path
 
-from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
-from blendspace_pipeline.evaluate import DEFAULT_CULL, Evaluation, LayerReport, evaluate
-from blendspace_pipeline.layers_doc import read_document
+from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.space.evaluate import DEFAULT_CULL, Evaluation, LayerReport, evaluate
+from blendspace_pipeline.space.layers_doc import read_document
 
 HELP = "blend weights (and playback rates) the blend graph gives at one query point"
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from blendspace_pipeline.errors import EXIT_OK, InputError
 from blendspace_pipeline.exporters import ENGINES, Export, export, write_export
-from blendspace_pipeline.layers_doc import read_document
+from blendspace_pipeline.space.layers_doc import read_document
 
 HELP = "write the blend space for Godot (.tres), Unity (.controller) or Unreal (editor Python script)"
 

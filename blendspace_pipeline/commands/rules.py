@@ -8,7 +8,7 @@ import sys
 from typing import Any
 
 from blendspace_pipeline.api import Rule
-from blendspace_pipeline.rule_engine import load_rules
+from blendspace_pipeline.checks.rule_engine import load_rules
 
 HELP = "list every available rule (built-in, entry points, BLENDSPACE_RULE_PATH)"
 

@@ -13,8 +13,8 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from blendspace_pipeline.document import BlendSpaceDocument
 from blendspace_pipeline.manifest.models import Manifest
+from blendspace_pipeline.space.document import BlendSpaceDocument
 
 HELP = "print the JSON Schema of the manifest (default) or of the blend-space JSON"
 

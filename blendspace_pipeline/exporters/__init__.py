@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 
-from blendspace_pipeline.document import AxisDoc, BlendSpaceDocument
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.layers_doc import parse_layers
 from blendspace_pipeline.report.atomic import atomic_path
+from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument
+from blendspace_pipeline.space.layers_doc import parse_layers
 
 ENGINES = ("godot", "unity", "unreal")
 

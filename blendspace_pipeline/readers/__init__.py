@@ -11,8 +11,8 @@ import importlib
 from pathlib import Path
 from types import ModuleType
 
-from blendspace_pipeline.clip import Clip, validate_clip
 from blendspace_pipeline.errors import ClipReadError
+from blendspace_pipeline.motion.clip import Clip, validate_clip
 
 # Module names, not imports: an adapter's heavy dependency (pxr) loads only when used.
 _ADAPTERS = {

@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton
+from blendspace_pipeline.motion.quaternions import FloatArray
 
 SUFFIXES = (".bvh",)
 _POSITION = {"xposition": 0, "yposition": 1, "zposition": 2}

@@ -29,10 +29,10 @@ from urllib.parse import unquote, unquote_to_bytes
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton, topological_order
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton, topological_order
+from blendspace_pipeline.motion.quaternions import FloatArray
 
 SUFFIXES = (".gltf", ".glb")
 

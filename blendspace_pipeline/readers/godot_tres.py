@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.readers.gltf import sample_keys
 
 SUFFIXES = (".tres",)

@@ -24,10 +24,10 @@ import numpy as np
 from pxr import Sdf, Tf, Usd, UsdGeom, UsdSkel, Vt
 from scipy.spatial.transform import Rotation
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton, UpAxis
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton, UpAxis
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.writers.usd_clip import FLAT_SKELETON_KEY
 
 SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from blendspace_pipeline.document import BlendSpaceDocument
+from blendspace_pipeline.space.document import BlendSpaceDocument
 
 __all__ = ["write_html_report", "write_png"]
 

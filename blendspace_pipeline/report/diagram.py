@@ -14,9 +14,9 @@ from typing import Literal
 
 import numpy as np
 
-from blendspace_pipeline.document import AxisDoc, BlendSpaceDocument, DiagnosticDoc
-from blendspace_pipeline.geometry import NORMALISED_EXTENT, AxisRange, normalise
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument, DiagnosticDoc
+from blendspace_pipeline.space.geometry import NORMALISED_EXTENT, AxisRange, normalise
 
 Point = tuple[float, float]
 ProblemKind = Literal["edge", "polygon", "rings", "circle", "region", "point"]

@@ -14,7 +14,7 @@ import zlib
 import numpy as np
 from numpy.typing import NDArray
 
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray
 
 UInt8Array = NDArray[np.uint8]
 

@@ -21,9 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from blendspace_pipeline.document import BlendSpaceDocument
-from blendspace_pipeline.geometry import normalise
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report import tables
 from blendspace_pipeline.report.atomic import atomic_path
 from blendspace_pipeline.report.diagram import Layout, Scene, axis_ranges, build_scene, convex_hull
@@ -37,6 +35,8 @@ from blendspace_pipeline.report.trajectory_error import (
     manual_triangles,
     measured_positions,
 )
+from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.space.geometry import normalise
 
 SIGNIFICANT = 5  # digits kept in the embedded JSON: far below any measurement's precision
 

@@ -20,8 +20,7 @@ import numpy as np
 import OpenImageIO as oiio
 from OpenImageIO import ImageBufAlgo as algo
 
-from blendspace_pipeline.document import BlendSpaceDocument
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report.atomic import atomic_path
 from blendspace_pipeline.report.diagram import (
     COLOURS,
@@ -34,6 +33,7 @@ from blendspace_pipeline.report.diagram import (
     build_scene,
     problem_colour,
 )
+from blendspace_pipeline.space.document import BlendSpaceDocument
 
 PNG_LAYOUT = Layout(width=1280, height=960, left=84, right=270, top=78, bottom=70)
 SCALE = 2  # supersampling factor

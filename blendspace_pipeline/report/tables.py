@@ -6,8 +6,8 @@ import json
 from html import escape
 from typing import Any
 
-from blendspace_pipeline.document import BlendSpaceDocument, SampleDoc
-from blendspace_pipeline.measure import FEATURE_UNITS as UNITS
+from blendspace_pipeline.motion.measure import FEATURE_UNITS as UNITS
+from blendspace_pipeline.space.document import BlendSpaceDocument, SampleDoc
 
 SEVERITIES = ("error", "warning", "info")
 # Axis features first, then the rest of spec.md's features in its order, then anything else.

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from blendspace_pipeline.document import BlendSpaceDocument
-from blendspace_pipeline.geometry import NORMALISED_EXTENT, AxisRange, locate, normalise
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report.diagram import axis_ranges
-from blendspace_pipeline.triangulate import triangulate
+from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.space.geometry import NORMALISED_EXTENT, AxisRange, locate, normalise
+from blendspace_pipeline.space.triangulate import triangulate
 
 BoolArray = NDArray[np.bool_]
 DEFAULT_RESOLUTION = 41

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.readers.bvh import BvhHeader, BvhJoint, read_header
 
 _SIX = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")

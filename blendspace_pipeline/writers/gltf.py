@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report.atomic import atomic_path
 
 SUFFIXES = (".glb", ".gltf")

@@ -14,8 +14,8 @@ from pathlib import Path
 
 from pxr import Sdf, Tf, Usd, UsdGeom, Vt
 
-from blendspace_pipeline.document import BlendSpaceDocument, SampleDoc
-from blendspace_pipeline.layers_doc import BetaLayerDoc, parse_layers
+from blendspace_pipeline.space.document import BlendSpaceDocument, SampleDoc
+from blendspace_pipeline.space.layers_doc import BetaLayerDoc, parse_layers
 
 NAMESPACE = "blendspace"
 

@@ -22,9 +22,9 @@ import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdSkel, Vt
 from scipy.spatial.transform import Rotation
 
-from blendspace_pipeline import quaternions as quat
-from blendspace_pipeline.clip import Clip, Skeleton
-from blendspace_pipeline.quaternions import FloatArray
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip, Skeleton
+from blendspace_pipeline.motion.quaternions import FloatArray
 
 SUFFIXES = (".usd", ".usda", ".usdc")
 # customData key path (nested dictionary ``blendspace_pipeline = {hasHierarchy = false}``) on the

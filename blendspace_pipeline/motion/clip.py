@@ -1,0 +1,172 @@
+"""The format-neutral clip model and vectorised forward kinematics.
+
+Every reader produces `Clip` objects and every writer consumes them, so measurement, fixes and
+exports never see a file format. Quaternions are scalar-last ``(x, y, z, w)`` (see
+`quaternions`). Lengths are in the file's own units; `Clip.meters_per_unit` says what one unit
+is when the file says so (USD, glTF), and is ``None`` when the format does not know (BVH).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from blendspace_pipeline.errors import ClipReadError
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.quaternions import FloatArray
+
+UpAxis = Literal["y", "z"]
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """Joint hierarchy. Joints are ordered so that every parent comes before its children."""
+
+    names: tuple[str, ...]
+    parents: tuple[int, ...]  # -1 for a root joint
+    rest_translations: FloatArray  # (J, 3) local offset from the parent, file units
+    rest_rotations: FloatArray  # (J, 4) local rest rotation, scalar-last
+    # False when the file carries animation tracks but not the hierarchy (Godot Animation
+    # resources keep the rest pose in the model file): forward kinematics is then meaningless
+    # and measurement must use a single joint's own track.
+    has_hierarchy: bool = True
+
+    def __post_init__(self) -> None:
+        count = len(self.names)
+        if len(self.parents) != count:
+            raise ValueError("skeleton: one parent per joint expected")
+        for index, parent in enumerate(self.parents):
+            if parent >= index:
+                raise ValueError(f"skeleton: joint {self.names[index]!r} comes before its parent")
+
+    @property
+    def joint_count(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+    def children(self, joint: int) -> list[int]:
+        return [j for j, p in enumerate(self.parents) if p == joint]
+
+    def descendants(self, joint: int) -> list[int]:
+        inside = {joint}
+        for j, p in enumerate(self.parents):
+            if p in inside:
+                inside.add(j)
+        inside.discard(joint)
+        return sorted(inside)
+
+    def same_layout(self, other: Skeleton) -> bool:
+        """Same joint names in the same hierarchy (what blending and mirroring require)."""
+        return self.names == other.names and self.parents == other.parents
+
+
+@dataclass
+class Clip:
+    """One animation: per-frame local joint transforms sampled at a constant rate."""
+
+    name: str
+    source: Path
+    skeleton: Skeleton
+    rotations: FloatArray  # (F, J, 4) local rotations, scalar-last
+    translations: FloatArray  # (F, J, 3) local translations, file units
+    fps: float
+    meters_per_unit: float | None = None  # None: the format does not say (BVH)
+    up_axis: UpAxis | None = None  # None: the format does not say
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def frame_count(self) -> int:
+        return int(self.rotations.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return (self.frame_count - 1) / self.fps
+
+    def trimmed(self, start: int, stop: int) -> Clip:
+        """Frames ``start`` to ``stop`` (exclusive), as a new clip."""
+        return replace(
+            self,
+            rotations=self.rotations[start:stop],
+            translations=self.translations[start:stop],
+            notes=list(self.notes),
+        )
+
+
+def validate_clip(clip: Clip) -> Clip:
+    """Reject what no measurement can use: no frames, a bad rate, NaN or infinite values."""
+    frames, joints = clip.rotations.shape[:2]
+    if clip.rotations.shape != (frames, clip.skeleton.joint_count, 4) or clip.translations.shape != (
+        frames,
+        joints,
+        3,
+    ):
+        raise ClipReadError(
+            f"clip {clip.name!r}: animation arrays do not match the skeleton "
+            f"({clip.skeleton.joint_count} joints)",
+            path=clip.source,
+        )
+    if frames == 0:
+        raise ClipReadError(
+            f"clip {clip.name!r} has no frames", path=clip.source, hint="export the animation with its keys"
+        )
+    if not (np.isfinite(clip.fps) and clip.fps > 0):
+        raise ClipReadError(
+            f"clip {clip.name!r} has an invalid frame rate ({clip.fps})",
+            path=clip.source,
+            hint="the frame time / time codes per second must be a positive number",
+        )
+    for label, values in (("rotation", clip.rotations), ("translation", clip.translations)):
+        bad = ~np.isfinite(values)
+        if bad.any():
+            frame, joint = (int(i) for i in np.argwhere(bad)[0][:2])
+            raise ClipReadError(
+                f"clip {clip.name!r}: non-finite {label} value (NaN or inf) at frame {frame}, "
+                f"joint {clip.skeleton.names[joint]!r}",
+                path=clip.source,
+                hint="re-export the clip; NaN usually comes from a broken constraint or a division by zero in the DCC",
+            )
+    return clip
+
+
+def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
+    """World rotations (F, J, 4) and positions (F, J, 3) of every joint on every frame.
+
+    Vectorised over frames: one numpy operation per joint, parents first.
+    """
+    skeleton = clip.skeleton
+    world_rot = np.empty_like(clip.rotations)
+    world_pos = np.empty_like(clip.translations)
+    for joint, parent in enumerate(skeleton.parents):
+        if parent < 0 or not skeleton.has_hierarchy:
+            world_rot[:, joint] = clip.rotations[:, joint]
+            world_pos[:, joint] = clip.translations[:, joint]
+            continue
+        parent_rot = world_rot[:, parent]
+        world_rot[:, joint] = quat.multiply(parent_rot, clip.rotations[:, joint])
+        world_pos[:, joint] = world_pos[:, parent] + quat.rotate(parent_rot, clip.translations[:, joint])
+    return world_rot, world_pos
+
+
+def topological_order(parents: list[int]) -> list[int]:
+    """An order of joint indices in which every parent precedes its children."""
+    order: list[int] = []
+    placed: set[int] = set()
+    children: dict[int, list[int]] = {}
+    for joint, parent in enumerate(parents):
+        children.setdefault(parent, []).append(joint)
+    stack = list(reversed(children.get(-1, [])))
+    while stack:
+        joint = stack.pop()
+        if joint in placed:
+            continue
+        placed.add(joint)
+        order.append(joint)
+        stack.extend(reversed(children.get(joint, [])))
+    if len(order) != len(parents):
+        raise ValueError("joint hierarchy has a cycle")
+    return order

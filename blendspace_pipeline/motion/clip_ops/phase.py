@@ -1,0 +1,316 @@
+"""Gait-cycle detection and phase: where in its stride a clip is on every frame.
+
+Blending a walk that takes one stride per second with a run that takes one per 0.7 s frame by
+frame in normalised time puts their legs out of step (the left foot of one swings forward while
+the other's swings back) and the mix shuffles. Engines sync clips by gait phase instead; this
+module finds it. The signal is how far the left foot is ahead of the right one along the
+character's own facing (the hip-line facing `measure` uses): it swings once per stride and, for a
+symmetric gait, flips sign every half stride, so its fundamental frequency *is* the stride rate.
+The stride period comes from the signal's zero crossings (or, for an exported loop, from the
+clip's length: a loop holds a whole number of strides), a best-fitting sinusoid telling a gait
+from noise; the phase runs through the actual crossings, the left foot passing the right one
+going forward at phase 0, 1, 2 ... and the right passing the left in between, so clips whose
+cadence drifts stay in step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.detect import RigSettings, hip_pair, resolve_facing, resolve_up
+from blendspace_pipeline.motion.joint_names import split_side
+from blendspace_pipeline.motion.quaternions import FloatArray
+
+# A stride shorter than this is not a gait (a fox trots at about 0.35 s per stride).
+MIN_PERIOD_S = 0.25
+# The clip must hold almost a whole stride for its period to be measurable.
+MIN_CYCLES = 0.95
+# The foot-to-foot swing must reach this fraction of the leg length (idle sway stays far below).
+MIN_AMPLITUDE = 0.1
+# Share of the signal's variance the stride sinusoid must explain: anything less is not periodic
+# (a steady mocap walk over several seconds reaches 0.5-0.6 as its cadence wanders).
+MIN_FIT = 0.45
+# Strides may differ this much (coefficient of variation) before the clip counts as irregular.
+MAX_STRIDE_SPREAD = 0.35
+_FOOT_BASES = ("foot", "ankle")
+
+
+@dataclass(frozen=True)
+class GaitCycle:
+    """A clip's stride: its mean period and the phase (in strides, increasing) of every frame."""
+
+    period: float  # seconds per stride (two steps)
+    phase: FloatArray  # (F,) strides since the left foot last passed the right one, unwrapped
+    fit: float  # share of the foot signal's variance the stride sinusoid explains
+    feet: tuple[str, str]
+    # Strides in a clip that loops (0 when it does not): the whole clip, seam included.
+    loop_strides: int = 0
+    # An open loop's last frame leads into its first (the first is not repeated at the end).
+    open_loop: bool = False
+
+    @property
+    def cycles(self) -> float:
+        """Strides the clip holds (a loop's count includes an open loop's seam)."""
+        return float(self.loop_strides) if self.loop_strides else float(self.phase[-1] - self.phase[0])
+
+
+def foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
+    """(left, right) foot joints: below the hips `detect` finds, the first joint named foot or
+    ankle, else the joint of the leg farthest from the hip in the rest pose."""
+    hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
+    if hips is None:
+        return None
+    skeleton = clip.skeleton
+    feet = []
+    for hip in hips:
+        below = skeleton.descendants(hip)
+        if not below:
+            return None
+        named = [j for j in below if any(b in split_side(skeleton.names[j])[1] for b in _FOOT_BASES)]
+        if named:
+            feet.append(named[0])
+            continue
+        rest_pos = _rest_positions(clip)  # only rigs without a named foot pay for posing the rest pose
+        feet.append(max(below, key=lambda j: np.linalg.norm(rest_pos[j] - rest_pos[hip])))
+    return feet[0], feet[1]
+
+
+def _rest_positions(clip: Clip) -> FloatArray:
+    """World joint positions of ``clip``'s rest pose."""
+    skeleton = clip.skeleton
+    rest = Clip(
+        clip.name,
+        clip.source,
+        skeleton,
+        skeleton.rest_rotations[None].copy(),
+        skeleton.rest_translations[None].copy(),
+        clip.fps,
+    )
+    positions: FloatArray = forward_kinematics(rest)[1][0]
+    return positions
+
+
+Posed = tuple[FloatArray, FloatArray]  # (world rotations, world positions) of every frame
+
+
+def foot_signal(
+    clip: Clip, settings: RigSettings, posed: Posed | None = None
+) -> tuple[FloatArray, float, tuple[int, int]] | None:
+    """(left foot minus right foot along the facing on every frame, mean leg length, feet); file units.
+
+    ``posed`` is the clip's forward kinematics when the caller has it already (`measure` does).
+    """
+    feet = foot_joints(clip, settings)
+    hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
+    if feet is None or hips is None:
+        return None
+    world_rot, world_pos = posed if posed is not None else forward_kinematics(clip)
+    up_axis, _ = resolve_up(clip, world_pos, settings)
+    up = np.array([0.0, 0.0, 1.0]) if up_axis == "z" else np.array([0.0, 1.0, 0.0])
+    forward = resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos)
+    forward = forward - (forward @ up)[:, None] * up
+    length = np.linalg.norm(forward, axis=1, keepdims=True)
+    forward = forward / np.where(length > 0.0, length, 1.0)
+    left, right = feet
+    signal = np.einsum("fi,fi->f", world_pos[:, left] - world_pos[:, right], forward)
+    legs = [
+        np.linalg.norm(world_pos[:, foot] - world_pos[:, hip], axis=1).mean()
+        for foot, hip in zip(feet, hips, strict=True)
+    ]
+    return signal, float(np.mean(legs)), feet
+
+
+def _sinusoid_fit(signal: FloatArray, times: FloatArray, frequencies: FloatArray) -> FloatArray:
+    """R^2 of the least-squares fit ``c + a cos(2 pi f t) + b sin(2 pi f t)`` for each frequency."""
+    centred = signal - signal.mean()
+    total = float(centred @ centred)
+    angle = 2.0 * np.pi * frequencies[:, None] * times[None, :]
+    cos, sin = np.cos(angle), np.sin(angle)
+    cos -= cos.mean(axis=1, keepdims=True)  # the constant term, projected out
+    sin -= sin.mean(axis=1, keepdims=True)
+    cc, ss, cs = (cos * cos).sum(1), (sin * sin).sum(1), (cos * sin).sum(1)
+    yc, ys = cos @ centred, sin @ centred
+    det = cc * ss - cs * cs
+    safe = np.where(det > 1e-12, det, 1.0)
+    explained = np.where(det > 1e-12, (ss * yc * yc - 2.0 * cs * yc * ys + cc * ys * ys) / safe, 0.0)
+    fit: FloatArray = explained / total if total > 0.0 else np.zeros_like(frequencies)
+    return fit
+
+
+def _stride_frequency(signal: FloatArray, fps: float) -> tuple[float, float]:
+    """(strides per second, fit) of the best sinusoid: a coarse grid on the signal thinned to
+    about 30 samples a second (strides are slower than 4 Hz), refined twice on all of it; the
+    grid is evaluated in blocks so a minute of 120 fps mocap needs little memory."""
+    frames = len(signal)
+    duration = (frames - 1) / fps
+    low = MIN_CYCLES / duration
+    high = min(1.0 / MIN_PERIOD_S, fps / 4.0)
+    if high <= low:
+        return 0.0, 0.0
+    thin = max(1, int(fps // 30))
+    times = np.arange(frames) / fps
+    step = 0.02 / duration  # a fiftieth of a stride over the whole clip
+    grid = np.arange(low, high + step, step)
+    fits = np.concatenate(
+        [_sinusoid_fit(signal[::thin], times[::thin], grid[i : i + 256]) for i in range(0, len(grid), 256)]
+    )
+    best = float(grid[int(np.argmax(fits))])
+    for _refinement in range(2):
+        grid = np.linspace(max(low, best - step), min(high, best + step), 41)
+        best = float(grid[int(np.argmax(_sinusoid_fit(signal, times, grid)))])
+        step = float(grid[1] - grid[0])
+    fit = float(_sinusoid_fit(signal, times, np.array([best]))[0])
+    return best, fit
+
+
+def _crossings(signal: FloatArray, hysteresis: float) -> tuple[FloatArray, FloatArray]:
+    """Fractional frames where ``signal`` crosses zero going up, and going down, ignoring
+    wiggles smaller than ``hysteresis``: a crossing counts once the signal has been past -h and
+    then past +h (or the reverse)."""
+    ups, downs = [], []
+    state = 0  # the side of zero the signal was last clearly on
+    last_zero = 0.0
+    for i in range(1, len(signal)):
+        a, b = float(signal[i - 1]), float(signal[i])
+        if (a < 0.0) != (b < 0.0):
+            last_zero = i - 1 + a / (a - b)
+        if b > hysteresis:
+            if state < 0:
+                ups.append(last_zero)
+            state = 1
+        elif b < -hysteresis:
+            if state > 0:
+                downs.append(last_zero)
+            state = -1
+    return np.array(ups, dtype=np.float64), np.array(downs, dtype=np.float64)
+
+
+def _anchors(ups: FloatArray, downs: FloatArray, rate: float, offset: float) -> tuple[FloatArray, FloatArray]:
+    """(frames, phases) the phase must pass through.
+
+    Each upward crossing is one stride after the previous one; each downward crossing lies the
+    same fraction of a stride after its upward one (1/2 for a symmetric gait, measured on the
+    clip's own complete strides). The hysteresis makes the two kinds alternate, so counting
+    them numbers the strides even when the cadence drifts a lot; the constant-rate phase
+    ``rate * frame + offset`` only decides which whole stride the first crossing belongs to.
+    """
+    fractions = [
+        (down - ups[ups < down][-1]) / (ups[ups > down][0] - ups[ups < down][-1])
+        for down in downs
+        if (ups < down).any() and (ups > down).any()
+    ]
+    half = float(np.median(fractions)) if fractions else 0.5
+    marks = np.concatenate([ups, downs])
+    is_up = np.concatenate([np.ones(len(ups), bool), np.zeros(len(downs), bool)])
+    order = np.argsort(marks, kind="stable")
+    marks, is_up = marks[order], is_up[order]
+    if not len(marks):
+        return marks, marks
+    # Relative phase: +half from an up to the next down, +(1 - half) from a down to the next up.
+    steps = np.where(is_up[1:], 1.0 - half, half)
+    relative = np.concatenate([[0.0 if is_up[0] else half], (0.0 if is_up[0] else half) + np.cumsum(steps)])
+    whole = float(np.round(np.median(rate * marks + offset - relative)))
+    return marks, relative + whole
+
+
+def _loop_length(signal: FloatArray, fps: float, amplitude: float) -> tuple[float, bool] | None:
+    """(the clip's length as a loop in seconds, whether it is open), or None when it does not loop.
+
+    Exporters write a loop either closed (the last frame repeats the first: length = duration)
+    or open (the last frame leads into the first: one frame longer). The seam is judged on the
+    foot signal, which is what phase is made of.
+    """
+    frames = len(signal)
+    first, last = float(signal[1] - signal[0]), float(signal[-1] - signal[-2])
+    steepest = float(np.abs(np.diff(signal)).max())
+    if abs(last - first) > 0.5 * steepest:
+        return None  # the motion does not go on the way it started (half a stride ends reversed)
+    closed_error = abs(float(signal[-1] - signal[0]))
+    open_error = abs(float(signal[0] - signal[-1]) - 0.5 * (last + first))
+    if min(closed_error, open_error) >= 0.1 * amplitude:
+        return None
+    if closed_error <= open_error:
+        return (frames - 1) / fps, False
+    return frames / fps, True
+
+
+def detect_cycle(clip: Clip, settings: RigSettings, posed: Posed | None = None) -> GaitCycle | None:
+    """The clip's stride, or None when it has no clear one (idle, turn on the spot, a shuffle
+    shorter than a stride, a rig without recognisable legs). ``posed``: see `foot_signal`."""
+    if clip.frame_count < 8:
+        return None
+    found = foot_signal(clip, settings, posed)
+    if found is None:
+        return None
+    signal, leg, feet = found
+    amplitude = 0.5 * float(np.ptp(signal))
+    if leg <= 0.0 or amplitude < MIN_AMPLITUDE * leg:
+        return None
+    frequency, fit = _stride_frequency(signal, clip.fps)
+    if frequency <= 0.0 or fit < MIN_FIT:
+        return None
+    centred = signal - 0.5 * (signal.max() + signal.min())
+    hysteresis = 0.25 * amplitude
+    loop = _loop_length(signal, clip.fps, amplitude)
+    open_loop, strides = False, 0
+    if loop is not None:
+        # A loop continues past both ends into itself: crossings there anchor its first and last
+        # frames too, and the strides it holds are the upward crossings in one turn of it. Its
+        # length then gives the period better than a fit to a not-quite sinusoid.
+        length, open_loop = loop
+        base = centred if open_loop else centred[:-1]
+        ups, downs = _crossings(np.concatenate([base, base, base]), hysteresis)
+        ups, downs = ups - len(base), downs - len(base)
+        strides = int(((ups >= 0) & (ups < len(base))).sum())
+        if strides < 1:
+            return None
+        frequency = strides / length
+    else:
+        ups, downs = _crossings(centred, hysteresis)
+        if len(ups) + len(downs) < 2:
+            return None  # not even a stride between crossings: too short to tell (a half stride)
+        strides_between = np.concatenate([np.diff(ups), np.diff(downs)])
+        if len(strides_between) >= 2 and strides_between.std() > MAX_STRIDE_SPREAD * strides_between.mean():
+            return None  # steps at no steady rhythm (dance, start-stop): no single stride to sync to
+    frames = np.arange(clip.frame_count, dtype=np.float64)
+    angle = 2.0 * np.pi * frequency * frames / clip.fps
+    basis = np.stack([np.sin(angle), np.cos(angle), np.ones_like(angle)], axis=1)
+    (a, b, _), *_ = np.linalg.lstsq(basis, signal, rcond=None)
+    # a sin(x) + b cos(x) = r sin(x + atan2(b, a)): phase 0 where the sinusoid crosses zero upward.
+    marks, values = _anchors(ups, downs, frequency / clip.fps, float(np.arctan2(b, a)) / (2.0 * np.pi))
+    if loop is None:
+        # The crossings' own mean rate: a drifting cadence biases the sinusoid fit, not them.
+        frequency = float(values[-1] - values[0]) / float(marks[-1] - marks[0]) * clip.fps
+    rate = frequency / clip.fps  # strides per frame
+    # Between crossings the phase runs linearly from one to the next, beyond them at the mean
+    # stride rate from the nearest one.
+    phase = np.interp(frames, marks, values)
+    phase = np.where(frames < marks[0], values[0] - (marks[0] - frames) * rate, phase)
+    phase = np.where(frames > marks[-1], values[-1] + (frames - marks[-1]) * rate, phase)
+    if loop is None and phase[-1] - phase[0] < MIN_CYCLES:
+        return None  # crossings half a stride apart in a clip shorter than a stride
+    names = clip.skeleton.names
+    return GaitCycle(1.0 / frequency, phase, fit, (names[feet[0]], names[feet[1]]), strides, open_loop)
+
+
+def frames_at_phases(cycle: GaitCycle, phases: FloatArray) -> FloatArray:
+    """Fractional frames of the clip at stride ``phases`` (any real numbers).
+
+    Phases before the clip or past its last whole stride wrap by whole strides into it, so a
+    looping clip plays on in step (a clip shorter than a stride holds its last frame). For an
+    open loop the result may lie between the last frame and ``frame_count``, which stands for
+    the first frame again: the caller interpolates across the seam.
+    """
+    phase = cycle.phase
+    frames = np.arange(len(phase), dtype=np.float64)
+    if cycle.open_loop:
+        phase = np.append(phase, phase[0] + cycle.loop_strides)
+        frames = np.append(frames, float(len(frames)))
+    start = float(phase[0])
+    whole = float(cycle.loop_strides) or max(1.0, float(np.floor(cycle.cycles + 1e-6)))
+    wrapped = start + np.mod(phases - start, whole)
+    positions: FloatArray = np.interp(wrapped, phase, frames)
+    return positions

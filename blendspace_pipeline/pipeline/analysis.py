@@ -1,0 +1,43 @@
+"""The one place that knows the order of the build.
+
+manifest → clip files → read + measure (cached) → placement → triangulation → layers → rules →
+fixes → document → writers. Each stage is a function of typed inputs; I/O happens only in the
+readers at the start and the writers at the end, so `check` runs everything but the last step.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from blendspace_pipeline.checks.locate_diagnostics import anchor
+from blendspace_pipeline.checks.rule_engine import run_rules
+from blendspace_pipeline.manifest import load_manifest
+from blendspace_pipeline.manifest.paths import resolve_clip_files
+from blendspace_pipeline.pipeline.layers import analyse_layers
+from blendspace_pipeline.pipeline.measure_stage import measure_files
+from blendspace_pipeline.pipeline.progress import Progress
+from blendspace_pipeline.space.model import BlendSpace, assemble
+
+
+def analyse(
+    manifest_path: Path, *, jobs: int = 1, progress: Progress | None = None, with_layers: bool = True
+) -> BlendSpace:
+    """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules."""
+    loaded = load_manifest(manifest_path)
+    files = resolve_clip_files(loaded)
+    clips = measure_files(loaded, files, jobs=jobs, progress=progress)
+    space = assemble(loaded, clips)
+    if with_layers:
+
+        def analyse_beta(path: Path) -> BlendSpace:
+            return analyse(path, jobs=jobs, progress=progress, with_layers=False)
+
+        space.layer_spaces = analyse_layers(space, analyse_beta, jobs=jobs, progress=progress)
+    finish_analysis(space)
+    return space
+
+
+def finish_analysis(space: BlendSpace) -> None:
+    """Run the rules on an assembled space and anchor their findings at manifest lines."""
+    run_rules(space)
+    space.diagnostics = anchor(space, space.diagnostics)

@@ -1,0 +1,137 @@
+"""Read and measure every clip file of a manifest, in parallel when asked, through the cache."""
+
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from blendspace_pipeline.errors import InputError, ManifestError
+from blendspace_pipeline.manifest import LoadedManifest
+from blendspace_pipeline.manifest.models import ClipEntry, SkeletonSettings
+from blendspace_pipeline.manifest.paths import ResolvedClipFile
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import Measurement, measure
+from blendspace_pipeline.pipeline import cache
+from blendspace_pipeline.pipeline.progress import Progress
+from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.space.model import MeasuredClip
+
+
+def rig_settings(settings: SkeletonSettings) -> RigSettings:
+    units = settings.units
+    return RigSettings(
+        units=float(units) if not isinstance(units, str) else units,
+        up=settings.up,
+        root=settings.root,
+        left_hip=settings.left_hip,
+        right_hip=settings.right_hip,
+        forward=settings.forward,
+        tpose=settings.tpose,
+    )
+
+
+def measure_file(
+    path: Path, settings: RigSettings, time_range: tuple[float, float] | None
+) -> list[tuple[str, Measurement]]:
+    """Measurements of every animation in ``path``, from the cache when the file is unchanged."""
+    key = cache.cache_key(path, settings.cache_key(), time_range)
+    cached = cache.load(key)
+    if cached is not None:
+        return cached
+    measured = [(clip.name, measure(clip, settings, time_range)) for clip in read_clips(path)]
+    cache.store(key, measured)
+    return measured
+
+
+def _measure_job(
+    job: tuple[Path, RigSettings, tuple[float, float] | None],
+) -> list[tuple[str, Measurement]] | InputError:
+    """Worker entry: input errors travel back as values (their fields survive pickling)."""
+    try:
+        return measure_file(*job)
+    except InputError as error:
+        return error
+
+
+def measure_files(
+    loaded: LoadedManifest, files: list[ResolvedClipFile], *, jobs: int = 1, progress: Progress | None = None
+) -> list[MeasuredClip]:
+    settings = rig_settings(loaded.model.skeleton)
+    job_list = [(f.path, settings, _range(f.entry)) for f in files]
+    results: list[list[tuple[str, Measurement]] | InputError] = []
+    if jobs > 1 and len(job_list) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for done, result in enumerate(pool.map(_measure_job, job_list, chunksize=8), start=1):
+                results.append(result)
+                if progress:
+                    progress(done, len(job_list), job_list[done - 1][0].name)
+    else:
+        for done, job in enumerate(job_list, start=1):
+            results.append(_measure_job(job))
+            if progress:
+                progress(done, len(job_list), job[0].name)
+    clips: list[MeasuredClip] = []
+    for resolved, result in zip(files, results, strict=True):
+        if isinstance(result, InputError):
+            raise _at_entry(loaded, resolved, result)
+        clips += _named(resolved, result)
+    _reject_duplicate_names(loaded, clips)
+    return clips
+
+
+def _at_entry(loaded: LoadedManifest, resolved: ResolvedClipFile, error: InputError) -> InputError:
+    """An error without a line in the clip file (an unsupported format, a `range:` past the end,
+    an unknown `skeleton.root`) points at the manifest entry that pulled the file in."""
+    if error.line is not None:
+        return error
+    return InputError(
+        f"{resolved.path}: {error.message}",
+        path=loaded.path,
+        line=resolved.line,
+        column=resolved.column,
+        hint=error.hint,
+    )
+
+
+def _range(entry: ClipEntry) -> tuple[float, float] | None:
+    return (float(entry.range[0]), float(entry.range[1])) if entry.range is not None else None
+
+
+def _named(resolved: ResolvedClipFile, measured: list[tuple[str, Measurement]]) -> list[MeasuredClip]:
+    clips = []
+    for reader_name, measurement in measured:
+        name = reader_name
+        if resolved.entry.name:
+            # "<name>/<animation>" keeps multi-animation files apart under a chosen name.
+            name = (
+                resolved.entry.name
+                if len(measured) == 1
+                else f"{resolved.entry.name}/{reader_name.split('/')[-1]}"
+            )
+        clips.append(
+            MeasuredClip(
+                name,
+                resolved.path,
+                resolved.entry,
+                resolved.line,
+                resolved.column,
+                measurement,
+                extra={"animation": reader_name},
+            )
+        )
+    return clips
+
+
+def _reject_duplicate_names(loaded: LoadedManifest, clips: list[MeasuredClip]) -> None:
+    seen: dict[str, MeasuredClip] = {}
+    for clip in clips:
+        if clip.name in seen:
+            first = seen[clip.name]
+            raise ManifestError(
+                f"two clips are named {clip.name!r}: {first.source} (line {first.line}) and {clip.source}",
+                path=loaded.path,
+                line=clip.line,
+                column=clip.column,
+                hint="give one of the entries its own `name:`; clip names must be unique in a blend space",
+            )
+        seen[clip.name] = clip

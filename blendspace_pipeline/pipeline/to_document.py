@@ -1,0 +1,170 @@
+"""The analysed `BlendSpace` as the engine-neutral JSON document (spec.md's layout)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from blendspace_pipeline import __version__
+from blendspace_pipeline.diagnostics import Diagnostic
+from blendspace_pipeline.motion.measure import FEATURE_UNITS
+from blendspace_pipeline.space.document import (
+    AxisDoc,
+    BlendSpaceDocument,
+    BuildInfoDoc,
+    ClipInfoDoc,
+    DiagnosticDoc,
+    LocationDoc,
+    PlaceholderDoc,
+    SampleDoc,
+)
+from blendspace_pipeline.space.layers_doc import (
+    BetaLayerDoc,
+    MaskDoc,
+    StyleAxisDoc,
+    StyleLayerDoc,
+    StyleSampleDoc,
+)
+from blendspace_pipeline.space.model import BetaSpace, BlendSpace, Layer, MeasuredClip, Sample
+
+DECIMALS = 6  # stable, diff-friendly numbers; far below any measurement's precision
+
+
+def _r(value: float) -> float:
+    return round(float(value), DECIMALS) + 0.0
+
+
+def relative_path(path: Path, base: Path) -> str:
+    """``path`` relative to ``base`` with forward slashes, or absolute when on another drive."""
+    try:
+        return Path(os.path.relpath(path, base)).as_posix()
+    except ValueError:
+        return path.as_posix()
+
+
+def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
+    m = sample.clip.measurement
+    entry = sample.clip.entry
+    return SampleDoc(
+        name=sample.name,
+        source=relative_path(sample.clip.source, out_dir),
+        features={k: _r(v) for k, v in m.features.items()},
+        position=[_r(sample.position[0]), _r(sample.position[1])],
+        generated=sample.generated,
+        fix=sample.fix,
+        snapping_error=[_r(e) for e in sample.snapping_error],
+        manual_position=[float(v) for v in entry.position] if entry.position is not None else None,
+        clip=_clip_info(sample.clip),
+    )
+
+
+def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:
+    m = clip.measurement
+    entry = clip.entry
+    return ClipInfoDoc(
+        duration=_r(m.features["duration"]),
+        fps=_r(m.fps),
+        frames=m.frames,
+        meters_per_unit=_r(m.meters_per_unit),
+        units_source=m.units_source,
+        up_axis=m.up_axis,
+        root=m.root,
+        facing=m.facing,
+        range=[float(v) for v in entry.range] if entry.range is not None else None,
+        notes=list(m.notes),
+        gait_period=_r(m.gait_period) if m.gait_period is not None else None,
+    )
+
+
+def layer_doc(layer: Layer, out_dir: Path) -> BetaLayerDoc | StyleLayerDoc:
+    """A beta or style layer in the JSON's `layers` list (see `layers_doc`)."""
+    if isinstance(layer, BetaSpace):
+        sub = layer.space
+        return BetaLayerDoc(
+            name=layer.name,
+            kind="beta",
+            source=relative_path(layer.manifest, out_dir),
+            samples=[_sample_doc(s, out_dir) for s in sub.samples],
+            triangles=[list(t) for t in sub.triangles],
+            diagnostics=[diagnostic_doc(d) for d in sub.all_diagnostics()],
+        )
+    axis = layer.axis
+    return StyleLayerDoc(
+        name=layer.name,
+        kind="style",
+        axis=StyleAxisDoc(
+            feature=axis.feature, min=axis.minimum, max=axis.maximum, unit=FEATURE_UNITS[axis.feature]
+        ),
+        samples=[
+            StyleSampleDoc(
+                name=clip.name,
+                source=relative_path(clip.source, out_dir),
+                position=[_r(value)],
+                features={k: _r(v) for k, v in clip.measurement.features.items()},
+                clip=_clip_info(clip),
+            )
+            for clip, value in zip(layer.clips, layer.positions, strict=True)
+        ],
+        mask=MaskDoc(joints=dict(layer.mask.joints), default=layer.mask.default) if layer.mask else None,
+        diagnostics=[],
+    )
+
+
+def diagnostic_doc(diagnostic: Diagnostic) -> DiagnosticDoc:
+    location = None
+    if diagnostic.path is not None:
+        location = LocationDoc(path=diagnostic.path, line=diagnostic.line, column=diagnostic.column)
+    return DiagnosticDoc(
+        rule=diagnostic.rule,
+        code=diagnostic.code,
+        severity=diagnostic.severity,
+        message=diagnostic.message,
+        clips=list(diagnostic.clips),
+        position=[_r(v) for v in diagnostic.position] if diagnostic.position is not None else None,
+        fix=diagnostic.fix,
+        hint=diagnostic.hint,
+        location=location,
+    )
+
+
+def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
+    model = space.manifest.model
+    return BlendSpaceDocument(
+        schema_version=1,
+        name=space.name,
+        axes=[
+            AxisDoc(
+                name=a.name,  # type: ignore[arg-type]  # placement axes are named "x"/"y"
+                feature=a.feature,
+                min=a.minimum,
+                max=a.maximum,
+                divisions=a.divisions,
+                unit=FEATURE_UNITS[a.feature],
+            )
+            for a in space.axes
+        ],
+        samples=[_sample_doc(s, out_dir) for s in space.samples],
+        triangles=[list(t) for t in space.triangles],
+        diagnostics=[diagnostic_doc(d) for d in space.diagnostics],
+        placeholders=[
+            PlaceholderDoc(
+                position=[_r(v) for v in p.position],
+                priority=p.priority,
+                rule=p.rule,
+                reason=p.reason,
+                features={k: _r(v) for k, v in p.features.items()},
+            )
+            for p in space.placeholders
+        ],
+        layers=[layer_doc(layer, out_dir).model_dump(mode="json") for layer in space.layer_spaces],
+        build=BuildInfoDoc(
+            tool_version=__version__,
+            manifest=relative_path(space.manifest.path, out_dir),
+            thresholds=model.thresholds.model_dump(),
+            settings={
+                "skeleton": model.skeleton.model_dump(mode="json"),
+                "rules": model.rules.model_dump(mode="json"),
+                "fixes": model.fixes.model_dump(mode="json"),
+            },
+        ),
+    )
