@@ -96,11 +96,19 @@ def test_inches_and_odd_units() -> None:
     clip = generate(GaitSpec("inch", speed=2.0, duration=1.0), meters_per_unit=0.0254)
     clip.meters_per_unit = None
     assert measure(clip, AUTO).meters_per_unit == pytest.approx(0.0254)
-    odd = generate(GaitSpec("odd", speed=2.0, duration=1.0), meters_per_unit=0.0564)
+    # CMU's unit (1/0.45 inch) is a convention now (issue 10): detected, not guessed.
+    cmu = generate(GaitSpec("cmu", speed=2.0, duration=1.0), meters_per_unit=0.0254 / 0.45)
+    cmu.meters_per_unit = None
+    detected = measure(cmu, AUTO)
+    assert not detected.units_guessed and not detected.guesses
+    assert detected.meters_per_unit == pytest.approx(0.0254 / 0.45)
+    odd = generate(GaitSpec("odd", speed=2.0, duration=1.0), meters_per_unit=0.2)
     odd.meters_per_unit = None
     guessed = measure(odd, AUTO)
     assert guessed.units_guessed
-    exact = measure(odd, RigSettings(units=0.0564))
+    assert [g.what for g in guessed.guesses] == ["units"]
+    assert "skeleton: {units:" in guessed.guesses[0].override
+    exact = measure(odd, RigSettings(units=0.2))
     assert exact.features["speed"] == pytest.approx(2.0, rel=0.03)
 
 

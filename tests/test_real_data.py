@@ -124,13 +124,15 @@ def test_cmu_walk_with_range_and_units(tmp_path: Path) -> None:
     assert whole["duration"] == pytest.approx(8.27, abs=0.01)
     assert whole["turn"] == pytest.approx(-12, abs=3)
     assert 46 < whole["speed"] * whole["duration"] / 0.0564 < 83
-    # Without the override the unit is estimated from the hip height and says so.
-    guessed = analyse(
+    # Without the override the unit is read from the body: CMU's 1/0.45 inch (SOURCES.md: about
+    # 0.056 m per unit), Y up, nothing guessed (issue 10: this used to be a units-doubt guess).
+    detected = analyse(
         _manifest(tmp_path, "schema_version: 1\nname: c\nclips:\n  - path: '@DATA/cmu/*.bvh'\n")
     )
-    assert any(d.rule == "units-doubt" for d in guessed.diagnostics)
-    for sample in guessed.samples:
-        assert 0.04 < sample.clip.measurement.meters_per_unit < 0.08
+    assert not [d for d in detected.diagnostics if d.rule in ("units-doubt", "detection-guess")]
+    for sample in detected.samples:
+        assert sample.clip.measurement.meters_per_unit == pytest.approx(0.0254 / 0.45)
+        assert sample.clip.measurement.up_axis == "y"
 
 
 def test_godot_mirrored_strafe_rereads_where_it_was_placed(tmp_path: Path) -> None:

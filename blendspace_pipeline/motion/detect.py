@@ -15,10 +15,18 @@ import numpy as np
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip
-from blendspace_pipeline.motion.joint_names import find_hips
+from blendspace_pipeline.motion.joint_names import find_hips, split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 UNIT_METERS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+# CMU's ASF skeletons scale inches by 0.45 ("length 0.45"), so one unit is 1/0.45 inch; BVH
+# conversions of the database keep that unit (legs about 14 units long).
+CMU_UNIT = 0.0254 / 0.45
+_CONVENTIONS = {**UNIT_METERS, "cmu": CMU_UNIT}
+# An adult's leg from the hip socket to the ankle: about 0.82 m (0.47 x height), 0.6-1.1 m
+# from small to tall adults; the ranges of neighbouring units (x2.2 apart at least) never meet.
+REFERENCE_LEG = 0.82
+_PLAUSIBLE_LEG = (0.55, 1.15)
 # An adult's hip socket stands about 0.9 m above the floor (roughly 0.53 x body height).
 REFERENCE_HIP_HEIGHT = 0.9
 # `hip_height` measures down to the lowest *joint* (toe or ankle), which stands a few centimetres
@@ -56,11 +64,26 @@ class RigSettings:
         return repr((self.units, self.up, self.root, self.left_hip, self.right_hip, self.forward, self.tpose))
 
 
+@dataclass(frozen=True)
+class DetectionGuess:
+    """A decision the data did not settle: reported as a `detection-guess` warning.
+
+    ``what`` is up axis, units, root or facing; ``evidence`` says what was seen and ``override``
+    is the exact manifest setting that replaces the guess.
+    """
+
+    what: str
+    value: str
+    evidence: str
+    override: str
+
+
 @dataclass
 class RootPoint:
     label: str
     positions: Callable[[FloatArray], FloatArray]
     notes: list[str] = field(default_factory=list)
+    guess: DetectionGuess | None = None
 
 
 @dataclass
@@ -68,6 +91,7 @@ class Facing:
     label: str
     vectors: Callable[[FloatArray, FloatArray], FloatArray]
     notes: list[str] = field(default_factory=list)
+    guess: DetectionGuess | None = None
 
 
 def _joint(clip: Clip, name: str, what: str) -> int:
@@ -102,17 +126,172 @@ def hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     return left, right
 
 
+# Up axes as signed axis names; measurement works in any of them (Y-up, Z-up and their negatives).
+UP_VECTORS = {
+    "y": np.array([0.0, 1.0, 0.0]),
+    "z": np.array([0.0, 0.0, 1.0]),
+    "x": np.array([1.0, 0.0, 0.0]),
+    "-y": np.array([0.0, -1.0, 0.0]),
+    "-z": np.array([0.0, 0.0, -1.0]),
+    "-x": np.array([-1.0, 0.0, 0.0]),
+}
+# The body's up (head over hips over feet, averaged over the take) must lie this close to one
+# axis (cosine) for the axis to count as detected: a walk leans a few degrees, a run about 10-15,
+# far inside this; a rig lying down or a wrong head guess falls below it and is reported.
+_UP_CONFIDENT_COS = 0.8
+_HEAD_BASES = ("head", "neck", "chest", "spine")
+_FOOT_BASES = ("foot", "ankle")
+
+
+def up_vector(up_axis: str) -> FloatArray:
+    return UP_VECTORS[up_axis]
+
+
+def _named_below(clip: Clip, joint: int, bases: tuple[str, ...]) -> int | None:
+    """The first descendant of ``joint`` whose base name (side token removed) holds a base of
+    ``bases``, trying the bases in order."""
+    below = clip.skeleton.descendants(joint)
+    for wanted in bases:
+        for j in below:
+            if wanted in split_side(clip.skeleton.names[j])[1]:
+                return j
+    return None
+
+
+def _lowest_common_ancestor(clip: Clip, a: int, b: int) -> int | None:
+    parents = clip.skeleton.parents
+    chain = set()
+    while a >= 0:
+        chain.add(a)
+        a = parents[a]
+    while b >= 0:
+        if b in chain:
+            return b
+        b = parents[b]
+    return None
+
+
+@dataclass(frozen=True)
+class BodyJoints:
+    """The joints the up axis and the unit are read from: hip sockets, feet, and a head (or the
+    top of the spine), found from the hierarchy and the names, never from where joints are."""
+
+    hips: tuple[int, int]
+    feet: tuple[int, int]
+    head: int | None
+
+
+def body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
+    if not clip.skeleton.has_hierarchy:
+        return None
+    hips = hip_pair(clip, settings)
+    if hips is None:
+        return None
+    feet = []
+    for hip in hips:
+        foot = _named_below(clip, hip, _FOOT_BASES)
+        if foot is None:
+            below = clip.skeleton.descendants(hip)
+            if not below:
+                return None
+            # The deepest joint of the leg: the end of its longest chain.
+            foot = max(below, key=lambda j: _depth_below(clip, j, hip))
+        feet.append(foot)
+    head = None
+    pelvis = _lowest_common_ancestor(clip, hips[0], hips[1])
+    if pelvis is not None:
+        head = _named_below(clip, pelvis, _HEAD_BASES)
+        if head is not None and head in clip.skeleton.descendants(hips[0]) + clip.skeleton.descendants(hips[1]):
+            head = None
+    return BodyJoints(hips=(hips[0], hips[1]), feet=(feet[0], feet[1]), head=head)
+
+
+def _depth_below(clip: Clip, joint: int, ancestor: int) -> int:
+    depth = 0
+    while joint not in (ancestor, -1):
+        joint = clip.skeleton.parents[joint]
+        depth += 1
+    return depth
+
+
+def _chain_length(clip: Clip, world_pos: FloatArray, top: int, bottom: int) -> float:
+    """Median over frames of the summed bone lengths from ``bottom`` up to ``top``: the limb's
+    length whatever its pose, its place in the world or the up axis."""
+    total = np.zeros(len(world_pos))
+    joint = bottom
+    parents = clip.skeleton.parents
+    while joint != top and parents[joint] >= 0:
+        parent = parents[joint]
+        total += np.linalg.norm(world_pos[:, joint] - world_pos[:, parent], axis=1)
+        joint = parent
+    return float(np.median(total))
+
+
+def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple[str, float, str] | None:
+    """(signed up axis, confidence 0..1, evidence) from the body, or None without a body.
+
+    The body's up is the feet-to-hips direction plus the hips-to-head direction, each a unit
+    vector per frame, averaged over the take. Joints outside the body (a static top joint far
+    away, props) play no part, nor does where the character stands or which way it faces; a
+    T-pose, an A-pose or a mid-stride first frame all have the legs below and the head above.
+    """
+    body = body_joints(clip, settings)
+    if body is None:
+        return None
+    hip_mid = 0.5 * (world_pos[:, body.hips[0]] + world_pos[:, body.hips[1]])
+    feet_mid = 0.5 * (world_pos[:, body.feet[0]] + world_pos[:, body.feet[1]])
+    parts = [hip_mid - feet_mid]
+    if body.head is not None:
+        parts.append(world_pos[:, body.head] - hip_mid)
+    total = np.zeros(3)
+    for part in parts:
+        length = np.linalg.norm(part, axis=1, keepdims=True)
+        total += (part / np.where(length > 0.0, length, 1.0)).mean(axis=0)
+    norm = float(np.linalg.norm(total))
+    if norm <= 1e-9:
+        return None
+    direction = total / norm
+    axis = int(np.argmax(np.abs(direction)))
+    sign = "" if direction[axis] > 0 else "-"
+    name = sign + "xyz"[axis]
+    confidence = float(abs(direction[axis]))
+    angle = float(np.degrees(np.arccos(min(1.0, confidence))))
+    names = clip.skeleton.names
+    via = f"feet ({names[body.feet[0]]}) to hips" + (f" to {names[body.head]}" if body.head is not None else "")
+    return name, confidence, f"body up ({via}) is {angle:.0f} deg from {name.upper()}"
+
+
 def resolve_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple[str, str | None]:
-    if settings.up in ("y", "z"):
-        return settings.up, None
+    """(signed up axis, note or None); see `resolve_up_guess` for the guess it may be."""
+    up, note, _guess = resolve_up_guess(clip, world_pos, settings)
+    return up, note
+
+
+def resolve_up_guess(
+    clip: Clip, world_pos: FloatArray, settings: RigSettings
+) -> tuple[str, str | None, DetectionGuess | None]:
+    if settings.up != "auto":
+        return settings.up, None, None
     if clip.up_axis is not None:
-        return clip.up_axis, None
-    # A standing character is taller than it is deep: compare its extent along Y and Z
-    # (arms in a T-pose lie along X in both conventions, so X is left out).
+        return clip.up_axis, None, None
+    found = detect_up(clip, world_pos, settings)
+    if found is not None:
+        up, confidence, evidence = found
+        note = f"up axis detected as {up.upper()} from the body: {evidence}"
+        if confidence >= _UP_CONFIDENT_COS:
+            return up, note, None
+        return up, note, DetectionGuess("up axis", up.upper(), evidence, "skeleton: {up: y} or {up: z}")
+    # No recognisable body: a standing character is taller than it is deep (its extent along Y
+    # and Z; arms in a T-pose lie along X in both conventions, so X is left out).
     frame = world_pos[min(1, len(world_pos) - 1)]
     extent = frame.max(axis=0) - frame.min(axis=0)
     up = "z" if extent[2] > extent[1] else "y"
-    return up, f"up axis detected as {up.upper()} from the skeleton's shape"
+    evidence = f"no hips or feet recognised; the joints spread most along {up.upper()}"
+    return (
+        up,
+        f"up axis guessed as {up.upper()} from the joints' spread",
+        DetectionGuess("up axis", up.upper(), evidence, "skeleton: {up: y} or {up: z}"),
+    )
 
 
 def resolve_root(clip: Clip, settings: RigSettings) -> RootPoint:
@@ -128,10 +307,20 @@ def resolve_root(clip: Clip, settings: RigSettings) -> RootPoint:
             positions=lambda p: 0.5 * (p[:, left] + p[:, right]),
         )
     joint = _fallback_root_joint(clip)
+    name = clip.skeleton.names[joint]
+    guess = None
+    if clip.skeleton.has_hierarchy:  # a flat track set (Godot) has its root motion on that joint by design
+        guess = DetectionGuess(
+            "root",
+            name,
+            "no left/right hip joints recognised in the joint names",
+            "skeleton: {left_hip: <joint>, right_hip: <joint>} or {root: <joint>}",
+        )
     return RootPoint(
-        label=clip.skeleton.names[joint],
+        label=name,
         positions=lambda p: p[:, joint],
-        notes=[f"no hip joints recognised: root motion measured on joint {clip.skeleton.names[joint]!r}"],
+        notes=[f"no hip joints recognised: root motion measured on joint {name!r}"],
+        guess=guess,
     )
 
 
@@ -145,7 +334,7 @@ def _fallback_root_joint(clip: Clip) -> int:
 
 
 def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
-    up = np.array([0.0, 0.0, 1.0]) if up_axis == "z" else np.array([0.0, 1.0, 0.0])
+    up = up_vector(up_axis)
     hips = hip_pair(clip, settings) if settings.forward == "auto" else None
     if hips is not None:
         left, right = hips
@@ -162,49 +351,99 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
         return quat.rotate(rot[:, joint], np.broadcast_to(axis, (len(rot), 3)))
 
     notes = []
+    guess = None
     if settings.forward == "auto":
         notes.append(
             f"facing taken from joint {clip.skeleton.names[joint]!r} axis {axis_name} (assumed); "
             "set `skeleton.forward` if the character faces another way"
         )
+        if clip.skeleton.has_hierarchy:
+            guess = DetectionGuess(
+                "facing",
+                f"{clip.skeleton.names[joint]} {axis_name}",
+                "no hip line to face by (no left/right hips recognised)",
+                "skeleton: {forward: +z} (the root joint's forward axis) or name the hips",
+            )
     return Facing(
-        label=f"{clip.skeleton.names[joint]} axis {axis_name}", vectors=from_joint_axis, notes=notes
+        label=f"{clip.skeleton.names[joint]} axis {axis_name}", vectors=from_joint_axis, notes=notes, guess=guess
     )
 
 
 def hip_height(clip: Clip, world_pos: FloatArray, up_axis: str, root: RootPoint) -> float:
     """Upright height of the root point above the lowest joint (the feet), in file units."""
-    axis = 2 if up_axis == "z" else 1
-    heights = root.positions(world_pos)[:, axis] - world_pos[:, :, axis].min(axis=1)
+    up = up_vector(up_axis)
+    heights = root.positions(world_pos) @ up - (world_pos @ up).min(axis=1)
     return float(np.percentile(heights, _UPRIGHT_PERCENTILE))
 
 
 def resolve_units(
-    clip: Clip, world_pos: FloatArray, settings: RigSettings, up_axis: str, root: RootPoint
+    clip: Clip,
+    world_pos: FloatArray,
+    settings: RigSettings,
+    up_axis: str,
+    root: RootPoint,
 ) -> tuple[float, str, bool]:
-    """(metres per unit, where it came from, whether it is a guess).
+    """(metres per unit, where it came from, whether it is a guess); see `resolve_units_guess`."""
+    scale, source, guess = resolve_units_guess(clip, world_pos, settings, up_axis, root)
+    return scale, source, guess is not None
 
-    Pass the whole, untrimmed clip: a unit estimated per range would differ between ranges of
-    one file.
+
+def resolve_units_guess(
+    clip: Clip,
+    world_pos: FloatArray,
+    settings: RigSettings,
+    up_axis: str,
+    root: RootPoint,
+) -> tuple[float, str, DetectionGuess | None]:
+    """(metres per unit, where it came from, the guess when it is one).
+
+    In order: the manifest, the file (USD `metersPerUnit`, glTF metres), then the body: the leg
+    (hip socket to ankle, summed bone lengths, so neither pose nor up axis nor a far-away top
+    joint matters) read in each conventional unit (m, cm, mm, inches, CMU's 1/0.45 inch); the
+    unit that makes it a human leg wins. Pass the whole, untrimmed clip: a unit estimated per
+    range would differ between ranges of one file.
     """
     if isinstance(settings.units, float | int) and not isinstance(settings.units, bool):
-        return float(settings.units), "manifest", False
+        return float(settings.units), "manifest", None
     if settings.units in UNIT_METERS:
-        return UNIT_METERS[str(settings.units)], "manifest", False
+        return UNIT_METERS[str(settings.units)], "manifest", None
     if clip.meters_per_unit is not None:
-        return clip.meters_per_unit, "file", False
+        return clip.meters_per_unit, "file", None
+    override = "skeleton: {units: cm} (m, cm, mm, in, or metres per unit such as 0.0564)"
+    body = body_joints(clip, settings)
+    if body is not None:
+        legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
+        leg = float(np.mean(legs))
+        if leg > 0.0:
+            return _unit_from_length(leg, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg (hip to ankle)", override)
     if not clip.skeleton.has_hierarchy:
-        return 1.0, "assumed metres", True
+        return 1.0, "assumed metres", DetectionGuess("units", "m", "no skeleton hierarchy to size", override)
     height = hip_height(clip, world_pos, up_axis, root)
     if height <= 0:
-        return 1.0, "assumed metres", True
-    low, high = _PLAUSIBLE_HIP_HEIGHT
+        return 1.0, "assumed metres", DetectionGuess("units", "m", "no body to size", override)
     reference = REFERENCE_HIP_HEIGHT - _LOWEST_JOINT_HEIGHT
-    plausible = {unit: scale for unit, scale in UNIT_METERS.items() if low <= height * scale <= high}
-    if plausible:
-        unit = min(plausible, key=lambda u: abs(np.log(height * plausible[u] / reference)))
-        return plausible[unit], f"detected ({unit})", False
-    return reference / height, "guessed from hip height", True
+    return _unit_from_length(height, reference, _PLAUSIBLE_HIP_HEIGHT, "hip height", override)
+
+
+def _unit_from_length(
+    length: float, reference: float, plausible: tuple[float, float], what: str, override: str
+) -> tuple[float, str, DetectionGuess | None]:
+    """The conventional unit that makes ``length`` (file units) a plausible human ``what``.
+
+    Neighbouring conventions differ by at least 2.2x (inch to CMU unit) and adult legs by less
+    than that, so at most one unit is plausible; none is a guess (the reference's scale).
+    """
+    low, high = plausible
+    fits = {unit: scale for unit, scale in _CONVENTIONS.items() if low <= length * scale <= high}
+    if fits:
+        unit = min(fits, key=lambda u: abs(np.log(length * fits[u] / reference)))
+        return fits[unit], f"detected ({unit}: {what} {length * fits[unit]:.2f} m)", None
+    scale = reference / length
+    evidence = (
+        f"the {what} is {length:.4g} units: no unit of m, cm, mm, in or CMU makes it "
+        f"{low:g}-{high:g} m; assumed {reference:g} m"
+    )
+    return scale, f"guessed from the {what}", DetectionGuess("units", f"{scale:.4g} m per unit", evidence, override)
 
 
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:

@@ -10,21 +10,26 @@ in place. Units and the up axis come from the file, the manifest, or detection (
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
+from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal
 from blendspace_pipeline.motion.detect import (
+    DetectionGuess,
     RigSettings,
     detect_tpose_frame,
     resolve_facing,
     resolve_root,
-    resolve_units,
-    resolve_up,
+    resolve_units_guess,
+    resolve_up_guess,
+    up_vector,
 )
+from blendspace_pipeline.motion.heading import smooth_over_cycle
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 FEATURE_UNITS = {
@@ -40,6 +45,8 @@ FEATURE_UNITS = {
 # Below these a clip has no root motion worth placing (a warning, not a silent origin sample).
 IN_PLACE_SPEED = 0.05  # m/s
 IN_PLACE_TURN_RATE = 3.0  # deg/s
+# `speed` is negative only when travel points this far from the facing (spec.md).
+BACKWARD_DIRECTION = 100.0  # deg
 
 
 @dataclass
@@ -60,6 +67,15 @@ class Measurement:
     in_place: bool = False
     units_guessed: bool = False
     joint_names: list[str] = field(default_factory=list)
+    # Decisions the data did not settle (`detection-guess` findings name them and their override).
+    guesses: list[DetectionGuess] = field(default_factory=list)
+    # Seconds of the clip measured, first and last frame (None: the whole clip).
+    range_used: tuple[float, float] | None = None
+    # `skeleton_key`: clips of one rig must agree on the up axis and unit they were read with.
+    skeleton_key: str = ""
+    # Whether the up axis and the unit were read from the body (not the file or the manifest).
+    detected_up: bool = False
+    detected_units: bool = False
 
 
 # No rig spans 1e9 of its units (a million km in metres, 1,000 km in millimetres).
@@ -101,10 +117,17 @@ def trim(clip: Clip, time_range: tuple[float, float] | None) -> Clip:
     return clip.trimmed(*frame_span(clip, time_range))
 
 
-def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] | None = None) -> Measurement:
-    """Every feature of spec.md for ``clip`` (trimmed to ``time_range`` first)."""
+TimeRange = tuple[float, float] | Literal["auto"] | None
+
+
+def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> Measurement:
+    """Every feature of spec.md for ``clip`` (trimmed to ``time_range`` first; ``"auto"`` picks
+    the steady locomotion part, see `steady_span`)."""
     notes: list[str] = []
-    first, stop = frame_span(clip, time_range)
+    guesses: list[DetectionGuess] = []
+    auto = time_range == "auto"
+    explicit = None if auto or time_range is None else (float(time_range[0]), float(time_range[1]))
+    first, stop = frame_span(clip, explicit)
     # Forward kinematics of the whole clip: the unit estimate needs every frame (below).
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values are reported just below
         whole_rot, whole_pos = forward_kinematics(clip)
@@ -115,41 +138,58 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
             path=clip.source,
             hint="a channel holds a corrupt value (e.g. 1e308); re-export the clip",
         )
-    used = clip.trimmed(first, stop) if time_range is not None else clip
-    world_rot, world_pos = whole_rot[first:stop], whole_pos[first:stop]
-    drop = (
-        detect_tpose_frame(used, world_pos, settings) if (time_range is None or time_range[0] == 0) else False
-    )
-    if drop:
-        used = used.trimmed(1, used.frame_count)
-        world_rot, world_pos = world_rot[1:], world_pos[1:]
+    # The up axis, like the unit, belongs to the file: read from the body over every frame.
+    up_axis, up_note, up_guess = resolve_up_guess(clip, whole_pos, settings)
+    root = resolve_root(clip, settings)
+    facing = resolve_facing(clip, settings, up_axis)
+    # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
+    # `range:` entry of one take gets the same unit (and so comparable speeds).
+    meters_per_unit, units_source, units_guess = resolve_units_guess(clip, whole_pos, settings, up_axis, root)
+    if (explicit is None or explicit[0] == 0) and detect_tpose_frame(
+        clip.trimmed(first, stop), whole_pos[first:stop], settings
+    ):
+        first += 1
         notes.append("first frame is a rest/T-pose and was left out of the measurement")
-    if used.frame_count < 2:
+    ground = _ground_basis(up_axis)
+    if auto:
+        span = steady_span(
+            clip.trimmed(first, stop),
+            settings,
+            (whole_rot[first:stop], whole_pos[first:stop]),
+            root.positions(whole_pos[first:stop]) @ ground.T,
+        )
+        if span is None:
+            notes.append("range: auto found no steady gait cycles; the whole clip is measured")
+        else:
+            first, stop = first + span[0], first + span[1]
+    if stop - first < 2:
         raise ClipReadError(
-            f"clip {clip.name!r} has {used.frame_count} frame(s) in the measured range; at least 2 are needed",
+            f"clip {clip.name!r} has {stop - first} frame(s) in the measured range; at least 2 are needed",
             path=clip.source,
             hint="give the clip more frames or widen its `range:`",
         )
-    up_axis, up_note = resolve_up(used, world_pos, settings)
-    root = resolve_root(used, settings)
-    facing = resolve_facing(used, settings, up_axis)
-    # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
-    # `range:` entry of one take gets the same unit (and so comparable speeds).
-    meters_per_unit, units_source, guessed = resolve_units(clip, whole_pos, settings, up_axis, root)
+    used = clip.trimmed(first, stop) if (first, stop) != (0, clip.frame_count) else clip
+    world_rot, world_pos = whole_rot[first:stop], whole_pos[first:stop]
+    range_used = (first / clip.fps, (stop - 1) / clip.fps)
+    if auto:
+        notes.append(f"range: auto chose [{range_used[0]:.3f}, {range_used[1]:.3f}] s")
     notes += [n for n in (up_note,) if n]
     notes += root.notes + facing.notes
-    if guessed:
+    guesses += [g for g in (up_guess, units_guess, root.guess, facing.guess) if g is not None]
+    if units_guess is not None:
         notes.append(
-            f"length unit guessed from the hip height: {meters_per_unit:.4g} m per unit; "
-            "set `skeleton.units` to be sure"
+            f"length unit guessed: {meters_per_unit:.4g} m per unit; set `skeleton.units` to be sure"
         )
-    ground = _ground_basis(up_axis)
     positions = root.positions(world_pos) @ ground.T * meters_per_unit  # (F, 2) metres
     forward = facing.vectors(world_rot, world_pos) @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
+    cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
+    if cycle is not None:
+        # The hip line sways with the pelvis (up to +-25 deg on swaggering gaits) once a stride:
+        # facing averaged over a whole stride cancels it.
+        heading = smooth_over_cycle(heading, used.fps, cycle.period)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
-    cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
     return Measurement(
         features=features,
         meters_per_unit=meters_per_unit,
@@ -162,17 +202,110 @@ def measure(clip: Clip, settings: RigSettings, time_range: tuple[float, float] |
         gait_period=cycle.period if cycle is not None else None,
         notes=notes,
         in_place=in_place,
-        units_guessed=guessed,
+        units_guessed=units_guess is not None,
         joint_names=list(used.skeleton.names),
+        guesses=guesses,
+        range_used=range_used if (explicit is not None or auto or first > 0) else None,
+        skeleton_key=skeleton_key(clip),
+        detected_up=up_note is not None,
+        detected_units=units_source.startswith(("detected", "guessed")),
     )
+
+
+def skeleton_key(clip: Clip) -> str:
+    """Identity of a skeleton: joint names, hierarchy and rest offsets (to 4 significant digits).
+
+    Clips sharing it were exported from one rig, so they must read the same up axis and unit.
+    """
+    offsets = np.array2string(
+        np.asarray(clip.skeleton.rest_translations, dtype=np.float64), precision=4, floatmode="maxprec"
+    )
+    text = repr((clip.skeleton.names, clip.skeleton.parents)) + offsets
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+# range: auto keeps whole cycles whose speed is within this fraction of the steady speed and
+# whose length is within this fraction of the median cycle (a start or stop cycle is slower).
+_STEADY_SPEED_TOLERANCE = 0.08
+_STEADY_PERIOD_TOLERANCE = 0.15
+
+
+def steady_span(
+    clip: Clip, settings: RigSettings, posed: tuple[FloatArray, FloatArray], ground: FloatArray
+) -> tuple[int, int] | None:
+    """(first, stop) frames of the steady locomotion part: the longest run of whole gait cycles
+    at the steady speed (the T-pose, the start from standing and the stop left out).
+
+    Cycles run from one left-passes-right foot crossing to the next (`phase.foot_signal`); each
+    one's speed is its chord over its length in the ground plane (``ground``: the root's (F, 2)
+    ground positions, any unit). The steady speed is the median of the faster half of the
+    cycles, so a take with long starts and stops still finds its walk.
+    """
+    found = foot_signal(clip, settings, posed)
+    if found is None:
+        return None
+    signal = found[0]
+    centred = signal - np.median(signal)
+    amplitude = float(np.percentile(np.abs(centred), 95))
+    if amplitude <= 0.0:
+        return None
+    ups = _upward_crossings(centred, 0.25 * amplitude)
+    if len(ups) < 2:
+        return None
+    frames = np.arange(len(ground), dtype=np.float64)
+    at = np.stack([np.interp(ups, frames, ground[:, 0]), np.interp(ups, frames, ground[:, 1])], axis=1)
+    lengths = np.diff(ups)
+    speeds = np.linalg.norm(np.diff(at, axis=0), axis=1) / lengths
+    faster = np.sort(speeds)[len(speeds) // 2 :]
+    reference = float(np.median(faster))
+    if reference <= 0.0:
+        return None
+    typical = float(np.median(lengths))
+    steady = (np.abs(speeds - reference) <= _STEADY_SPEED_TOLERANCE * reference) & (
+        np.abs(lengths - typical) <= _STEADY_PERIOD_TOLERANCE * typical
+    )
+    best: tuple[int, int] | None = None
+    start = None
+    for index, ok in enumerate([*steady.tolist(), False]):
+        if ok and start is None:
+            start = index
+        elif not ok and start is not None:
+            if best is None or index - start > best[1] - best[0]:
+                best = (start, index)
+            start = None
+    if best is None:
+        return None
+    first = int(np.floor(ups[best[0]] + 0.5))
+    last = int(np.floor(ups[best[1]] + 0.5))
+    return first, min(last, len(ground) - 1) + 1
+
+
+def _upward_crossings(signal: FloatArray, hysteresis: float) -> FloatArray:
+    """Fractional frames where ``signal`` crosses zero going up after having been below
+    ``-hysteresis`` (wiggles smaller than that are not steps)."""
+    below = signal < -hysteresis
+    ups = []
+    armed = False
+    for i in range(1, len(signal)):
+        if below[i - 1]:
+            armed = True
+        a, b = float(signal[i - 1]), float(signal[i])
+        if armed and a < 0.0 <= b:
+            ups.append(i - 1 + a / (a - b) if a != b else float(i))
+            armed = False
+    return np.array(ups, dtype=np.float64)
 
 
 def _ground_basis(up_axis: str) -> FloatArray:
     """Rows e1, e2 spanning the ground with e1 x e2 = up, so atan2(e2, e1) grows counter-clockwise
     seen from above: a left turn is positive."""
-    if up_axis == "z":
-        return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    return np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    # For Y up: (Z, X); for Z up: (X, Y); the others are these turned to their axis.
+    up = up_vector(up_axis)
+    axis = int(np.argmax(np.abs(up)))
+    first = np.zeros(3)
+    first[(axis + 1) % 3] = 1.0
+    second = np.cross(up, first)
+    return np.array([first, second])
 
 
 def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[str, float]:
@@ -189,8 +322,9 @@ def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[st
         direction = min(direction + 360.0, 180.0)
     turn = float(np.degrees(heading[-1] - heading[0]))
     return {
-        # A pure strafe (90 deg) stays positive despite rounding noise in the forward component.
-        "speed": -ground_speed if abs(direction) > 90.0 + 1e-6 else ground_speed,
+        # Strafes (80-100 deg) stay positive: noise in the forward component must not flip the
+        # sign of a sideways clip, nor make a mirrored pair read opposite speeds.
+        "speed": -ground_speed if abs(direction) > BACKWARD_DIRECTION else ground_speed,
         "displacement_speed": float(np.linalg.norm(positions[-1] - positions[0])) / duration,
         "forward_speed": forward,
         "lateral_speed": lateral,
