@@ -41,6 +41,7 @@ from blendspace_pipeline.space.placement import Axis
 
 __all__ = [
     "Axis",
+    "DetectionGuessView",
     "Diagnostic",
     "LayerView",
     "Placeholder",
@@ -60,6 +61,17 @@ def _read_only(mapping: Mapping[str, _V]) -> Mapping[str, _V]:
     literal), so a later change there does not show through either.
     """
     return MappingProxyType(dict(mapping))
+
+
+@dataclass(frozen=True)
+class DetectionGuessView:
+    """A decision about a clip that its data did not settle (up axis, units, root or facing):
+    the value used, the evidence seen, and the manifest setting that replaces the guess."""
+
+    what: str
+    value: str
+    evidence: str
+    override: str
 
 
 @dataclass(frozen=True)
@@ -84,6 +96,9 @@ class SampleView:
     units_guessed: bool = False
     joint_names: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
+    guesses: tuple[DetectionGuessView, ...] = ()
+    # Same key: same joint names, hierarchy and rest offsets (one rig), so one up axis and unit.
+    skeleton_key: str = ""
 
     def __post_init__(self) -> None:
         # Frozen dataclasses only stop attribute assignment; the mappings need freezing too.
@@ -92,6 +107,7 @@ class SampleView:
             object.__setattr__(self, "expect", _read_only(self.expect))
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
         object.__setattr__(self, "notes", tuple(self.notes))
+        object.__setattr__(self, "guesses", tuple(self.guesses))
 
 
 @dataclass(frozen=True)

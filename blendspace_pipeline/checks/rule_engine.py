@@ -29,7 +29,15 @@ from types import ModuleType
 
 from pydantic import BaseModel, ValidationError
 
-from blendspace_pipeline.api import LayerView, Rule, RuleOptions, SampleView, SpaceView, iter_rule_classes
+from blendspace_pipeline.api import (
+    DetectionGuessView,
+    LayerView,
+    Rule,
+    RuleOptions,
+    SampleView,
+    SpaceView,
+    iter_rule_classes,
+)
 from blendspace_pipeline.diagnostics import SEVERITY_ORDER, Diagnostic, Placeholder, Severity
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace, Layer, MeasuredClip
 
@@ -280,6 +288,8 @@ def sample_view(
         units_guessed=m.units_guessed,
         joint_names=tuple(m.joint_names),
         notes=tuple(m.notes),
+        guesses=tuple(DetectionGuessView(g.what, g.value, g.evidence, g.override) for g in m.guesses),
+        skeleton_key=m.skeleton_key,
     )
 
 

@@ -86,48 +86,6 @@ class IgnoreEntry(_Model):
         return value
 
 
-class ClipEntry(_Model):
-    """One clip file, or a glob of clip files, with optional per-clip settings."""
-
-    path: str = Field(
-        description="Clip file or glob (*, ?, [...], **), relative to the manifest's folder; absolute paths "
-        "and '..' are allowed, backslashes are read as folder separators."
-    )
-    name: str | None = Field(
-        default=None,
-        description="Clip name; default the file stem ('<stem>/<animation>' for multi-animation files). "
-        "A named glob must match exactly one file.",
-    )
-    range: tuple[float, float] | None = Field(
-        default=None, description="Optional trim [start, end] in seconds; 0 <= start < end."
-    )
-    expect: dict[FeatureName, float] | None = Field(
-        default=None,
-        description="Intended feature values, checked by the misalignment rule (e.g. {turn_rate: 0}).",
-    )
-    position: tuple[float, float] | None = Field(
-        default=None,
-        description="Hand placement [x, y] in axis units, compared with the measured one in the report.",
-    )
-    ignore: list[IgnoreEntry] = Field(
-        default_factory=list, description="Rules silenced for this clip, each with a reason."
-    )
-
-    @field_validator("range")
-    @classmethod
-    def _range_order(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
-        if value is None:
-            return value
-        start, end = value
-        if start < 0:
-            raise rule_error(
-                f"starts before 0 s ({start:g})", "clip time starts at 0; use range: [0, end] or later"
-            )
-        if start >= end:
-            raise rule_error(f"start {start:g} s is not before end {end:g} s", "write range: [start, end]")
-        return value
-
-
 class MirrorTokens(_Model):
     """Name tokens swapped to mirror a clip (e.g. Left <-> Right)."""
 
@@ -164,6 +122,71 @@ class SkeletonSettings(_Model):
     tpose: Literal["auto", "keep", "drop"] = Field(
         default="auto", description="Whether to drop a T-pose/rest first frame; auto = drop it when detected."
     )
+
+
+class ClipEntry(_Model):
+    """One clip file, or a glob of clip files, with optional per-clip settings."""
+
+    path: str = Field(
+        description="Clip file or glob (*, ?, [...], **), relative to the manifest's folder; absolute paths "
+        "and '..' are allowed, backslashes are read as folder separators."
+    )
+    name: str | None = Field(
+        default=None,
+        description="Clip name; default the file stem ('<stem>/<animation>' for multi-animation files). "
+        "A named glob must match exactly one file.",
+    )
+    range: tuple[float, float] | Literal["auto"] | None = Field(
+        default=None,
+        description="Optional trim [start, end] in seconds (0 <= start < end), or auto: the steady "
+        "locomotion part as whole gait cycles (T-pose, start from standing and stop left out).",
+    )
+    expect: dict[FeatureName, float] | None = Field(
+        default=None,
+        description="Intended feature values, checked by the misalignment rule (e.g. {turn_rate: 0}).",
+    )
+    position: tuple[float, float] | None = Field(
+        default=None,
+        description="Hand placement [x, y] in axis units, compared with the measured one in the report.",
+    )
+    ignore: list[IgnoreEntry] = Field(
+        default_factory=list, description="Rules silenced for this clip, each with a reason."
+    )
+    skeleton: SkeletonSettings | None = Field(
+        default=None,
+        description="Per-entry override of the top-level skeleton: keys (for mixed libraries); keys not "
+        "set here come from the top level.",
+    )
+
+    @field_validator("range", mode="before")
+    @classmethod
+    def _range_shape(cls, value: object) -> object:
+        # Checked before the union so a wrong shape reads as one message, not one per member.
+        if isinstance(value, list | tuple) and len(value) != 2:
+            raise rule_error(
+                f"expected 2 values, got {len(value)}", "write range: [start, end] or range: auto"
+            )
+        if isinstance(value, str) and value != "auto":
+            raise rule_error(
+                f"expected [start, end] or auto, got {value!r}", "write range: [start, end] or range: auto"
+            )
+        return value
+
+    @field_validator("range")
+    @classmethod
+    def _range_order(
+        cls, value: tuple[float, float] | Literal["auto"] | None
+    ) -> tuple[float, float] | Literal["auto"] | None:
+        if value is None or value == "auto":
+            return value
+        start, end = value
+        if start < 0:
+            raise rule_error(
+                f"starts before 0 s ({start:g})", "clip time starts at 0; use range: [0, end] or later"
+            )
+        if start >= end:
+            raise rule_error(f"start {start:g} s is not before end {end:g} s", "write range: [start, end]")
+        return value
 
 
 class Axis(_Model):

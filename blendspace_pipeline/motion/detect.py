@@ -201,7 +201,9 @@ def body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
     pelvis = _lowest_common_ancestor(clip, hips[0], hips[1])
     if pelvis is not None:
         head = _named_below(clip, pelvis, _HEAD_BASES)
-        if head is not None and head in clip.skeleton.descendants(hips[0]) + clip.skeleton.descendants(hips[1]):
+        if head is not None and head in clip.skeleton.descendants(hips[0]) + clip.skeleton.descendants(
+            hips[1]
+        ):
             head = None
     return BodyJoints(hips=(hips[0], hips[1]), feet=(feet[0], feet[1]), head=head)
 
@@ -257,7 +259,9 @@ def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple
     confidence = float(abs(direction[axis]))
     angle = float(np.degrees(np.arccos(min(1.0, confidence))))
     names = clip.skeleton.names
-    via = f"feet ({names[body.feet[0]]}) to hips" + (f" to {names[body.head]}" if body.head is not None else "")
+    via = f"feet ({names[body.feet[0]]}) to hips" + (
+        f" to {names[body.head]}" if body.head is not None else ""
+    )
     return name, confidence, f"body up ({via}) is {angle:.0f} deg from {name.upper()}"
 
 
@@ -365,7 +369,10 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
                 "skeleton: {forward: +z} (the root joint's forward axis) or name the hips",
             )
     return Facing(
-        label=f"{clip.skeleton.names[joint]} axis {axis_name}", vectors=from_joint_axis, notes=notes, guess=guess
+        label=f"{clip.skeleton.names[joint]} axis {axis_name}",
+        vectors=from_joint_axis,
+        notes=notes,
+        guess=guess,
     )
 
 
@@ -443,7 +450,11 @@ def _unit_from_length(
         f"the {what} is {length:.4g} units: no unit of m, cm, mm, in or CMU makes it "
         f"{low:g}-{high:g} m; assumed {reference:g} m"
     )
-    return scale, f"guessed from the {what}", DetectionGuess("units", f"{scale:.4g} m per unit", evidence, override)
+    return (
+        scale,
+        f"guessed from the {what}",
+        DetectionGuess("units", f"{scale:.4g} m per unit", evidence, override),
+    )
 
 
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:

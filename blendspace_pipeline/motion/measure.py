@@ -186,8 +186,13 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
     if cycle is not None:
         # The hip line sways with the pelvis (up to +-25 deg on swaggering gaits) once a stride:
-        # facing averaged over a whole stride cancels it.
-        heading = smooth_over_cycle(heading, used.fps, cycle.period)
+        # facing averaged over a whole stride cancels it. The stride is timed by the foot
+        # crossings themselves when there are several (exact on the take's own strides).
+        starts = stride_starts(used, settings, (world_rot, world_pos))
+        period = cycle.period
+        if starts is not None and len(starts) >= 2:
+            period = float(starts[-1] - starts[0]) / (len(starts) - 1) / used.fps
+        heading = smooth_over_cycle(heading, used.fps, period)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     return Measurement(
@@ -241,16 +246,8 @@ def steady_span(
     ground positions, any unit). The steady speed is the median of the faster half of the
     cycles, so a take with long starts and stops still finds its walk.
     """
-    found = foot_signal(clip, settings, posed)
-    if found is None:
-        return None
-    signal = found[0]
-    centred = signal - np.median(signal)
-    amplitude = float(np.percentile(np.abs(centred), 95))
-    if amplitude <= 0.0:
-        return None
-    ups = _upward_crossings(centred, 0.25 * amplitude)
-    if len(ups) < 2:
+    ups = stride_starts(clip, settings, posed)
+    if ups is None or len(ups) < 2:
         return None
     frames = np.arange(len(ground), dtype=np.float64)
     at = np.stack([np.interp(ups, frames, ground[:, 0]), np.interp(ups, frames, ground[:, 1])], axis=1)
@@ -278,6 +275,22 @@ def steady_span(
     first = int(np.floor(ups[best[0]] + 0.5))
     last = int(np.floor(ups[best[1]] + 0.5))
     return first, min(last, len(ground) - 1) + 1
+
+
+def stride_starts(
+    clip: Clip, settings: RigSettings, posed: tuple[FloatArray, FloatArray]
+) -> FloatArray | None:
+    """Fractional frames where the left foot passes the right one going forward (along the
+    hip-line facing): one per stride. None for a rig without recognisable legs."""
+    found = foot_signal(clip, settings, posed)
+    if found is None:
+        return None
+    signal = found[0]
+    centred = signal - np.median(signal)
+    amplitude = float(np.percentile(np.abs(centred), 95))
+    if amplitude <= 0.0:
+        return None
+    return _upward_crossings(centred, 0.25 * amplitude)
 
 
 def _upward_crossings(signal: FloatArray, hysteresis: float) -> FloatArray:

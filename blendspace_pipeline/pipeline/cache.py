@@ -31,10 +31,10 @@ def cache_dir() -> Path | None:
 
 # Bumped whenever the same clip would measure differently (a new feature, a changed detection),
 # so a developer's or CI's cache never serves results of older code under an unchanged version.
-MEASUREMENT_REVISION = 2
+MEASUREMENT_REVISION = 3
 
 
-def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | None) -> str:
+def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | str | None) -> str:
     digest = hashlib.sha256()
     with path.open("rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):

@@ -10,7 +10,7 @@ from blendspace_pipeline.manifest import LoadedManifest
 from blendspace_pipeline.manifest.models import ClipEntry, SkeletonSettings
 from blendspace_pipeline.manifest.paths import ResolvedClipFile
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.measure import Measurement, measure
+from blendspace_pipeline.motion.measure import Measurement, TimeRange, measure
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import read_clips
@@ -30,9 +30,16 @@ def rig_settings(settings: SkeletonSettings) -> RigSettings:
     )
 
 
-def measure_file(
-    path: Path, settings: RigSettings, time_range: tuple[float, float] | None
-) -> list[tuple[str, Measurement]]:
+def entry_settings(top: SkeletonSettings, entry: ClipEntry) -> SkeletonSettings:
+    """The top-level `skeleton:` with the keys the clip's own entry sets replacing it."""
+    if entry.skeleton is None:
+        return top
+    return top.model_copy(
+        update={key: getattr(entry.skeleton, key) for key in entry.skeleton.model_fields_set}
+    )
+
+
+def measure_file(path: Path, settings: RigSettings, time_range: TimeRange) -> list[tuple[str, Measurement]]:
     """Measurements of every animation in ``path``, from the cache when the file is unchanged."""
     key = cache.cache_key(path, settings.cache_key(), time_range)
     cached = cache.load(key)
@@ -44,7 +51,7 @@ def measure_file(
 
 
 def _measure_job(
-    job: tuple[Path, RigSettings, tuple[float, float] | None],
+    job: tuple[Path, RigSettings, TimeRange],
 ) -> list[tuple[str, Measurement]] | InputError:
     """Worker entry: input errors travel back as values (their fields survive pickling)."""
     try:
@@ -56,8 +63,8 @@ def _measure_job(
 def measure_files(
     loaded: LoadedManifest, files: list[ResolvedClipFile], *, jobs: int = 1, progress: Progress | None = None
 ) -> list[MeasuredClip]:
-    settings = rig_settings(loaded.model.skeleton)
-    job_list = [(f.path, settings, _range(f.entry)) for f in files]
+    top = loaded.model.skeleton
+    job_list = [(f.path, rig_settings(entry_settings(top, f.entry)), _range(f.entry)) for f in files]
     results: list[list[tuple[str, Measurement]] | InputError] = []
     if jobs > 1 and len(job_list) > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -93,8 +100,10 @@ def _at_entry(loaded: LoadedManifest, resolved: ResolvedClipFile, error: InputEr
     )
 
 
-def _range(entry: ClipEntry) -> tuple[float, float] | None:
-    return (float(entry.range[0]), float(entry.range[1])) if entry.range is not None else None
+def _range(entry: ClipEntry) -> TimeRange:
+    if entry.range is None or entry.range == "auto":
+        return entry.range
+    return (float(entry.range[0]), float(entry.range[1]))
 
 
 def _named(resolved: ResolvedClipFile, measured: list[tuple[str, Measurement]]) -> list[MeasuredClip]:

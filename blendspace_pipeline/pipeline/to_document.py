@@ -70,7 +70,9 @@ def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:
         up_axis=m.up_axis,
         root=m.root,
         facing=m.facing,
-        range=[float(v) for v in entry.range] if entry.range is not None else None,
+        range=[float(v) for v in clip.time_range] if clip.time_range is not None else None,
+        range_auto=entry.range == "auto",
+        guesses=[f"{g.what} guessed as {g.value}: set `{g.override}`" for g in m.guesses],
         notes=list(m.notes),
         gait_period=_r(m.gait_period) if m.gait_period is not None else None,
     )

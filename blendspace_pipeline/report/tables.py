@@ -132,7 +132,10 @@ def _clip_row(index: int, sample: SampleDoc, features: list[str]) -> str:
     if info is None:
         facts = "<td>–</td><td>–</td><td>–</td><td>–</td><td>–</td>"
     else:
-        trim = f"<br>range {pair(info.range)} s" if info.range else ""
+        trim = (
+            f"<br>range {pair(info.range)} s" + (" (auto)" if info.range_auto else "") if info.range else ""
+        )
+        trim += "".join(f'<br><span class="tag guess">{e(g)}</span>' for g in info.guesses)
         facts = (
             f"<td>{num(info.fps)}</td><td>{info.frames}</td>"
             f"<td>{num(info.meters_per_unit)} m/unit<br><small>{e(info.units_source)}</small></td>"

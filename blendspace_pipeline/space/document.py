@@ -39,7 +39,14 @@ class ClipInfoDoc(_Strict):
     up_axis: str = Field(description="Up axis used for the measurement (y or z).")
     root: str = Field(description="What the root motion was measured from (hip midpoint or a joint name).")
     facing: str = Field(description="What the facing was measured from (hip line or a joint axis).")
-    range: list[float] | None = Field(default=None, description="Trim applied from the manifest, seconds.")
+    range: list[float] | None = Field(
+        default=None, description="Trim applied from the manifest (or chosen by range: auto), seconds."
+    )
+    range_auto: bool = Field(default=False, description="Whether range: auto chose the range.")
+    guesses: list[str] = Field(
+        default_factory=list,
+        description="Detection guesses (up axis, unit, root, facing) with the override that replaces each.",
+    )
     notes: list[str] = Field(default_factory=list, description="What the reader or measurement noticed.")
     gait_period: float | None = Field(
         default=None,

@@ -34,6 +34,9 @@ class MeasuredClip:
 
     @property
     def time_range(self) -> tuple[float, float] | None:
+        """Seconds of the file this clip is: the entry's `range:`, or what `range: auto` chose."""
+        if self.entry.range == "auto":
+            return self.measurement.range_used
         return tuple(self.entry.range) if self.entry.range is not None else None  # type: ignore[return-value]
 
 

@@ -1,0 +1,209 @@
+"""Hostile mocap-like takes with known truth: what real studio files do to measurement.
+
+A `procedural` clip is a clean loop. Real takes are not: the file states no unit and no up axis,
+a static top joint (``Root``) sits at the origin while the hips start metres away, frame 0 is a
+T-pose, the character stands, starts, walks a few steady strides and stops, and its pelvis sways
+up to +-25 deg once a stride. `take` builds such a clip in any up axis (Y or Z) and unit (mm, cm,
+m, inch, CMU's 1/0.45 inch) and says where its steady part is, so detection, the measured
+features and ``range: auto`` can all be checked against values known by construction.
+
+Conventions as in `procedural` before the up-axis change: Y up, the character faces +Z at
+heading 0 and its left is +X; positive heading and turn rate turn left.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.procedural import HIP_HEIGHT, _convert_up, _scaled, humanoid_skeleton
+from blendspace_pipeline.motion.quaternions import FloatArray
+
+UNITS = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254, "cmu": 0.0254 / 0.45}
+_X = np.array([1.0, 0.0, 0.0])
+_Y = np.array([0.0, 1.0, 0.0])
+_Z = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class HostileSpec:
+    """One take. Speeds in m/s, angles in degrees, times in seconds, distances in metres."""
+
+    name: str
+    speed: float = 1.4  # steady ground speed
+    direction: float = 0.0  # travel relative to facing, > 0 to the left
+    turn_rate: float = 0.0  # steady turn rate, deg/s
+    up: str = "y"
+    unit: str = "cm"
+    fps: float = 30.0
+    hips_start: tuple[float, float] = (3.0, 0.0)  # ground (x, z) of the hips at the start
+    start_heading: float = 0.0
+    tpose_first_frame: bool = True
+    pelvis_yaw: float = 20.0  # amplitude of the pelvis yaw sway over a stride
+    stride_length: float = 1.3  # metres per stride (two steps) at the steady speed
+    stand: float = 0.5  # seconds standing before the start and after the stop
+    start_cycles: int = 2  # strides of speeding up (from standing)
+    steady_cycles: int = 4
+    stop_cycles: int = 2
+
+    @property
+    def period_frames(self) -> int:
+        """Frames per stride: whole frames so the steady part starts and ends on a frame."""
+        return max(8, round(self.stride_length / self.speed * self.fps))
+
+    @property
+    def period(self) -> float:
+        return self.period_frames / self.fps
+
+
+@dataclass(frozen=True)
+class HostileTake:
+    clip: Clip
+    spec: HostileSpec
+    steady: tuple[int, int]  # first and last frame (inclusive) of the steady strides
+
+    @property
+    def steady_seconds(self) -> tuple[float, float]:
+        return self.steady[0] / self.spec.fps, self.steady[1] / self.spec.fps
+
+
+def _envelope(frames: int, spec: HostileSpec) -> tuple[FloatArray, FloatArray, int, int]:
+    """(gait amount 0..1 per frame, stride phase in radians, first and last steady frame)."""
+    lead = (1 if spec.tpose_first_frame else 0) + round(spec.stand * spec.fps)
+    p = spec.period_frames
+    start, steady0 = lead, lead + spec.start_cycles * p
+    steady1 = steady0 + spec.steady_cycles * p
+    stop = steady1 + spec.stop_cycles * p
+    index = np.arange(frames, dtype=np.float64)
+    amount = np.zeros(frames)
+
+    def smooth(u: FloatArray) -> FloatArray:
+        u = np.clip(u, 0.0, 1.0)
+        result: FloatArray = u * u * (3.0 - 2.0 * u)
+        return result
+
+    rising = (index >= start) & (index < steady0)
+    amount[rising] = smooth((index[rising] - start) / max(1, steady0 - start))
+    amount[(index >= steady0) & (index <= steady1)] = 1.0
+    falling = (index > steady1) & (index <= stop)
+    amount[falling] = 1.0 - smooth((index[falling] - steady1) / max(1, stop - steady1))
+    phase = 2.0 * np.pi * (index - start) / p
+    phase[index < start] = 0.0
+    return amount, phase, steady0, steady1
+
+
+def take(spec: HostileSpec, *, source: Path | None = None) -> HostileTake:
+    """The take ``spec`` describes, as a file would read: no unit, no up axis."""
+    p = spec.period_frames
+    lead = (1 if spec.tpose_first_frame else 0) + round(spec.stand * spec.fps)
+    frames = (
+        lead
+        + (spec.start_cycles + spec.steady_cycles + spec.stop_cycles) * p
+        + round(spec.stand * spec.fps)
+        + 1
+    )
+    amount, phase, steady0, steady1 = _envelope(frames, spec)
+    # Heading and ground path integrated on a fine grid (the true arc), sampled at the frames.
+    sub = 16
+    fine = np.arange((frames - 1) * sub + 1) / (sub * spec.fps)
+    fine_amount = np.interp(fine * spec.fps, np.arange(frames), amount)
+    step = 1.0 / (sub * spec.fps)
+    turned = np.concatenate([[0.0], np.cumsum(0.5 * (fine_amount[1:] + fine_amount[:-1]) * step)])
+    fine_heading = np.deg2rad(spec.start_heading + spec.turn_rate * turned)
+    travel = fine_heading + np.deg2rad(spec.direction)
+    velocity = spec.speed * fine_amount[:, None] * np.stack([np.sin(travel), np.cos(travel)], axis=-1)
+    path = np.concatenate([np.zeros((1, 2)), np.cumsum(0.5 * (velocity[1:] + velocity[:-1]) * step, axis=0)])
+    path = path + np.array(spec.hips_start)
+    heading = fine_heading[::sub]
+    ground = path[::sub]
+
+    skeleton = humanoid_skeleton(with_root_joint=True)
+    joints = skeleton.names
+    rotations = np.tile(quat.IDENTITY, (frames, len(joints), 1))
+    translations = np.tile(skeleton.rest_translations, (frames, 1, 1))
+    # The top joint stays at the origin, unrotated: the hips carry all the motion.
+    translations[:, 0] = 0.0
+    facing = quat.from_axis_angle(_Y, heading)
+    left = quat.rotate(facing, np.broadcast_to(_X, (frames, 3)))
+    sway = 0.03 * amount * np.sin(phase)
+    bob = 0.025 * amount * np.cos(2.0 * phase)
+    hips_world = np.stack([ground[:, 0], np.full(frames, HIP_HEIGHT), ground[:, 1]], axis=-1)
+    translations[:, 1] = hips_world + left * sway[:, None] + _Y * bob[:, None]
+    yaw = np.deg2rad(spec.pelvis_yaw) * amount * np.sin(phase)
+    rotations[:, 1] = quat.multiply(facing, quat.from_axis_angle(_Y, yaw))
+    _legs_and_arms(rotations, joints, phase, amount)
+    if spec.tpose_first_frame:
+        rotations[0] = quat.IDENTITY
+    translations, rotations = _convert_up(translations, rotations, spec.up, skeleton)
+    scale = UNITS[spec.unit]
+    clip = Clip(
+        name=spec.name,
+        source=source or Path(f"{spec.name}.hostile"),
+        skeleton=_scaled(skeleton, scale, spec.up),
+        rotations=rotations,
+        translations=translations / scale,
+        fps=spec.fps,
+        meters_per_unit=None,  # as in a BVH file: nothing says the unit or the up axis
+        up_axis=None,
+    )
+    return HostileTake(clip, spec, (steady0, steady1))
+
+
+def _legs_and_arms(
+    rotations: FloatArray, joints: tuple[str, ...], phase: FloatArray, amount: FloatArray
+) -> None:
+    """Legs swing in counter-phase, each knee bending through its own swing: the right leg does
+    at phase + pi what the left does at phase, so the left foot passes the right one going
+    forward exactly at phase 0 (where the strides of `take` begin)."""
+    for side, shift in (("Left", 0.0), ("Right", np.pi)):
+        swing = np.deg2rad(25.0) * amount * np.sin(phase + shift)
+        knee = np.deg2rad(5.0) + np.deg2rad(30.0) * amount * np.clip(np.sin(phase + shift), 0.0, None)
+        rotations[:, joints.index(f"{side}UpLeg")] = quat.from_axis_angle(_X, -swing)
+        rotations[:, joints.index(f"{side}Leg")] = quat.from_axis_angle(_X, knee)
+        sign = 1.0 if side == "Left" else -1.0
+        rotations[:, joints.index(f"{side}Arm")] = quat.multiply(
+            quat.from_axis_angle(_Z, np.full_like(phase, -sign * np.deg2rad(70.0))),
+            quat.from_axis_angle(_X, 0.6 * swing),
+        )
+
+
+def grid(*, seed: int = 10) -> list[HostileSpec]:
+    """Every up axis x unit, with the hips 0-10 m from the top joint, any start heading, pelvis
+    sway up to +-25 deg and a spread of gaits (walks, runs, backward, strafes, diagonals, turns)."""
+    rng = np.random.default_rng(seed)
+    gaits = [
+        ("walk", 1.4, 0.0, 0.0, 1.3),
+        ("run", 3.8, 0.0, 0.0, 2.6),
+        ("walk_back", 1.1, 180.0, 0.0, 1.1),
+        ("strafe_left", 1.2, 90.0, 0.0, 1.0),
+        ("strafe_right", 1.2, -90.0, 0.0, 1.0),
+        ("diagonal", 1.3, 45.0, 0.0, 1.2),
+        ("walk_turn_left", 1.4, 0.0, 30.0, 1.3),
+        ("run_turn_right", 3.5, 0.0, -45.0, 2.5),
+    ]
+    specs = []
+    for up in ("y", "z"):
+        for unit in UNITS:
+            for gait, speed, direction, turn_rate, stride in gaits:
+                distance = float(rng.uniform(0.0, 10.0))
+                angle = float(rng.uniform(0.0, 2.0 * np.pi))
+                specs.append(
+                    HostileSpec(
+                        name=f"{gait}_{up}_{unit}",
+                        speed=speed,
+                        direction=direction,
+                        turn_rate=turn_rate,
+                        up=up,
+                        unit=unit,
+                        fps=float(rng.choice([30.0, 60.0, 120.0])),
+                        hips_start=(distance * np.cos(angle), distance * np.sin(angle)),
+                        start_heading=float(rng.uniform(-180.0, 180.0)),
+                        pelvis_yaw=float(rng.uniform(0.0, 25.0)),
+                        stride_length=stride,
+                    )
+                )
+    return specs

@@ -1,0 +1,34 @@
+"""detection-guess: an up axis, unit, root or facing the clip's data did not settle."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from blendspace_pipeline.api import Diagnostic, Rule, SpaceView
+
+
+class DetectionGuess(Rule):
+    """BVH states no unit and no up axis, and some rigs have no recognisable hips. The build
+    reads these from the body (the feet-hips-head direction for up, the leg's length against
+    human legs in m, cm, mm, inches or CMU units) and, when that evidence is weak, has to guess.
+    A wrong guess silently scales every speed or turns forward into sideways, so every guess is
+    reported with the evidence and the exact manifest setting that replaces it (at the top-level
+    `skeleton:` or on the clip's own entry).
+    """
+
+    slug = "detection-guess"
+    code = "BS006"
+    severity = "warning"
+    summary = "up axis, unit, root or facing guessed with low confidence"
+
+    def check(self, space: SpaceView) -> Iterator[Diagnostic]:
+        for sample in space.samples:
+            if sample.generated:
+                continue
+            for guess in sample.guesses:
+                yield self.report(
+                    f"{sample.name}: {guess.what} guessed as {guess.value} ({guess.evidence})",
+                    clips=[sample.name],
+                    position=sample.position,
+                    hint=f"set `{guess.override}` on the clip's entry or the top-level skeleton",
+                )
