@@ -20,7 +20,7 @@ class AxisZeroOffGrid(Rule):
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
         for axis in space.axes:
-            if axis.contains(0.0) and not axis.zero_on_grid():
+            if axis.inside(0.0) and not axis.zero_on_grid():
                 yield self.report(
                     f"axis {axis.name} ({axis.feature} {axis.minimum:g}..{axis.maximum:g}, {axis.divisions} divisions) "
                     f"has no grid point at 0; nearest is {axis.snap(0.0):g}",

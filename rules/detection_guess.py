@@ -30,5 +30,7 @@ class DetectionGuess(Rule):
                     f"{sample.name}: {guess.what} guessed as {guess.value} ({guess.evidence})",
                     clips=[sample.name],
                     position=sample.position,
-                    hint=f"set `{guess.override}` on the clip's entry or the top-level skeleton",
+                    hint=f"`{guess.override}` on the clip's entry (or the top-level `skeleton:`) confirms "
+                    "the guess; give the right value there if it is wrong (units: m, cm, mm, in or metres "
+                    "per unit; up: y or z)",
                 )

@@ -416,7 +416,7 @@ def resolve_units_guess(
         return UNIT_METERS[str(settings.units)], "manifest", None
     if clip.meters_per_unit is not None:
         return clip.meters_per_unit, "file", None
-    override = "skeleton: {units: cm} (m, cm, mm, in, or metres per unit such as 0.0564)"
+    override = "skeleton: {units: <m|cm|mm|in or metres per unit>}"
     body = body_joints(clip, settings)
     if body is not None:
         legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
@@ -446,6 +446,7 @@ def _unit_from_length(
         unit = min(fits, key=lambda u: abs(np.log(length * fits[u] / reference)))
         return fits[unit], f"detected ({unit}: {what} {length * fits[unit]:.2f} m)", None
     scale = reference / length
+    override = f"skeleton: {{units: {scale:.4g}}}"
     evidence = (
         f"the {what} is {length:.4g} units: no unit of m, cm, mm, in or CMU makes it "
         f"{low:g}-{high:g} m; assumed {reference:g} m"

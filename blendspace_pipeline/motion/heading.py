@@ -45,7 +45,7 @@ def smooth_over_cycle(heading: FloatArray, fps: float, period: float) -> FloatAr
     smoothed[valid] = averaged
     # Rate at each end from the averaged facing over up to half a cycle beyond the first/last
     # valid frame.
-    reach = int(max(1, min(len(valid) - 1, round(half))))
+    reach = int(max(1, min(len(valid) - 1, round(window))))
     rate_start = (averaged[reach] - averaged[0]) / reach
     rate_end = (averaged[-1] - averaged[-1 - reach]) / reach
     before = centres[: valid[0]]

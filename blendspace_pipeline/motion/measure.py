@@ -77,6 +77,12 @@ class Measurement:
     detected_up: bool = False
     detected_units: bool = False
 
+    def __post_init__(self) -> None:
+        # The cache stores measurements as JSON (`pipeline.cache`): rebuild the nested values.
+        self.guesses = [DetectionGuess(**g) if isinstance(g, dict) else g for g in self.guesses]
+        if self.range_used is not None:
+            self.range_used = (float(self.range_used[0]), float(self.range_used[1]))
+
 
 # No rig spans 1e9 of its units (a million km in metres, 1,000 km in millimetres).
 _ABSURD_LENGTH = 1e9

@@ -78,8 +78,8 @@ class GaitSpec:
 
     @property
     def signed_speed(self) -> float:
-        """The `speed` feature as spec.md defines it: negative when travel is backward."""
-        return -self.speed if abs(self.direction) > 90.0 else self.speed
+        """The `speed` feature as spec.md defines it: negative when travel is backward (past 100 deg)."""
+        return -self.speed if abs(self.direction) > 100.0 else self.speed
 
     @property
     def turn(self) -> float:

@@ -25,18 +25,27 @@ class Axis:
         return (self.maximum - self.minimum) / self.divisions
 
     def snap(self, value: float) -> float:
-        """Nearest grid value; outside the range it keeps snapping on the same grid."""
+        """Nearest grid value; outside the range it keeps snapping on the same grid, so a value
+        within half a step past an edge snaps onto the edge (see `contains`)."""
         index = np.round((value - self.minimum) / self.step)
         snapped = float(self.minimum + index * self.step)
         return round(snapped, 9) + 0.0  # "+ 0.0" turns -0.0 into 0.0
 
     def contains(self, value: float) -> bool:
+        """Inside the range, or close enough past an edge to snap onto it: a 180.0002 deg/s spin
+        (frame-time rounding) sits on the 180 edge, not outside. Half a step is what snapping
+        moves any value by; beyond it the value would land on a grid point outside the axis."""
+        tolerance = 0.5 * self.step * (1.0 - 1e-9)
+        return self.minimum - tolerance <= value <= self.maximum + tolerance
+
+    def inside(self, value: float) -> bool:
+        """Strictly inside [minimum, maximum] (to rounding), without `contains`'s half step."""
         tolerance = 1e-9 * max(1.0, abs(self.maximum - self.minimum))
         return self.minimum - tolerance <= value <= self.maximum + tolerance
 
     def zero_on_grid(self) -> bool:
         """Whether 0 (the main axis through idle) is a grid value inside the range."""
-        if not self.contains(0.0):
+        if not self.inside(0.0):
             return False
         return abs(self.snap(0.0)) < 1e-9
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.detect import RigSettings, hip_pair, resolve_facing, resolve_up
+from blendspace_pipeline.motion.detect import RigSettings, hip_pair, resolve_facing, resolve_up, up_vector
 from blendspace_pipeline.motion.joint_names import split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -109,7 +109,7 @@ def foot_signal(
         return None
     world_rot, world_pos = posed if posed is not None else forward_kinematics(clip)
     up_axis, _ = resolve_up(clip, world_pos, settings)
-    up = np.array([0.0, 0.0, 1.0]) if up_axis == "z" else np.array([0.0, 1.0, 0.0])
+    up = up_vector(up_axis)  # any signed axis: -Y and -Z up too
     forward = resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos)
     forward = forward - (forward @ up)[:, None] * up
     length = np.linalg.norm(forward, axis=1, keepdims=True)

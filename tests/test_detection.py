@@ -1,0 +1,254 @@
+"""Issue 10: measurement on hostile, real-mocap-like takes, and the findings that say what was guessed.
+
+Truth comes from `motion.hostile` (every up axis x unit, a static top joint at the origin with the
+hips 0-10 m away, any start heading, a T-pose frame 0, pelvis sway up to +-25 deg, a start and a
+stop around steady strides), and from the real clips in ../shared/data (their SOURCES.md).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SHARED_DATA, shared_data
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.heading import smooth_over_cycle
+from blendspace_pipeline.motion.hostile import UNITS, HostileSpec, grid, take
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline.analysis import analyse
+from blendspace_pipeline.space.placement import Axis
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+AUTO = RigSettings()
+GRID = grid()
+
+
+def _signed(spec: HostileSpec) -> float:
+    return -spec.speed if abs(spec.direction) > 100.0 else spec.speed
+
+
+@pytest.mark.parametrize("spec", GRID, ids=[s.name for s in GRID])
+def test_hostile_take_measures_right_without_overrides(spec: HostileSpec) -> None:
+    hostile = take(spec)
+    m = measure(hostile.clip, AUTO, "auto")
+    assert m.up_axis == spec.up
+    assert m.meters_per_unit == pytest.approx(UNITS[spec.unit], rel=1e-12)
+    assert not m.guesses and not m.units_guessed
+    assert m.features["speed"] == pytest.approx(_signed(spec), rel=0.02)
+    assert m.features["turn_rate"] == pytest.approx(spec.turn_rate, abs=1.0)
+    assert m.range_used is not None
+    first, last = (round(t * spec.fps) for t in m.range_used)
+    assert abs(first - hostile.steady[0]) <= 1 and abs(last - hostile.steady[1]) <= 1
+
+
+def test_grid_covers_the_hostile_space() -> None:
+    assert {(s.up, s.unit) for s in GRID} == {(u, n) for u in ("y", "z") for n in UNITS}
+    distances = [np.hypot(*s.hips_start) for s in GRID]
+    assert min(distances) < 1.0 and max(distances) > 9.0
+    assert max(s.pelvis_yaw for s in GRID) > 20.0
+    assert min(s.start_heading for s in GRID) < -120.0 < 120.0 < max(s.start_heading for s in GRID)
+
+
+def _flipped(clip: Clip) -> Clip:
+    """The same take in a world turned upside down (up is -Y or -Z): the top joint turned 180
+    deg about X."""
+    flip = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi)
+    rotations = clip.rotations.copy()
+    rotations[:, 0] = quat.multiply(np.broadcast_to(flip, rotations[:, 0].shape), rotations[:, 0])
+    return Clip(clip.name, clip.source, clip.skeleton, rotations, clip.translations, clip.fps)
+
+
+@pytest.mark.parametrize("up", ["y", "z"])
+def test_negative_up_axes(up: str) -> None:
+    spec = HostileSpec(
+        "neg", speed=1.4, turn_rate=30.0, up=up, unit="cm", pelvis_yaw=20.0, start_heading=40.0
+    )
+    m = measure(_flipped(take(spec).clip), AUTO, "auto")
+    assert m.up_axis == f"-{up}"
+    assert m.meters_per_unit == 0.01
+    assert m.features["speed"] == pytest.approx(1.4, rel=0.02)
+    assert m.features["turn_rate"] == pytest.approx(30.0, abs=1.0)  # a left turn stays a left turn
+
+
+def test_whole_take_turn_is_right_despite_sway() -> None:
+    """No `range:` at all: the T-pose frame, start and stop are measured too; the facing at each
+    end is averaged over a stride, so +-25 deg of pelvis yaw does not read as turn."""
+    spec = HostileSpec("sway", speed=1.3, turn_rate=0.0, pelvis_yaw=25.0, start_heading=-130.0, stand=0.0)
+    m = measure(take(spec).clip, AUTO)
+    # The start and the stop ramp the sway up and down, which one cycle of averaging does not
+    # fully cancel: a few degrees remain (a single-frame facing read up to the whole sway).
+    assert m.features["turn"] == pytest.approx(0.0, abs=5.0)
+
+
+def test_smoothing_keeps_a_constant_turn_and_removes_stride_sway() -> None:
+    fps, period = 30.0, 1.1
+    t = np.arange(200) / fps
+    truth = 0.3 + 0.5 * t
+    swaying = truth + np.deg2rad(25.0) * np.sin(2 * np.pi * t / period + 0.7)
+    smoothed = smooth_over_cycle(swaying, fps, period)
+    assert np.abs(smoothed - truth).max() < np.deg2rad(0.5)
+    # Walk, turn, walk: flat ends stay flat (a straight-line fit would tilt them).
+    steps = np.where(t < 2.0, 0.0, np.where(t > 4.0, 1.5, (t - 2.0) * 0.75))
+    smoothed = smooth_over_cycle(steps + np.deg2rad(20.0) * np.sin(2 * np.pi * t / period), fps, period)
+    assert smoothed[-1] - smoothed[0] == pytest.approx(1.5, abs=np.deg2rad(0.5))
+
+
+@pytest.mark.parametrize(
+    ("direction", "negative"), [(80.0, False), (95.0, False), (99.0, False), (110.0, True)]
+)
+def test_speed_sign_turns_negative_only_past_100_degrees(direction: float, negative: bool) -> None:
+    for side in (1.0, -1.0):
+        m = measure(generate(GaitSpec("s", speed=1.2, direction=side * direction, duration=1.0)), AUTO)
+        assert m.features["speed"] == pytest.approx(-1.2 if negative else 1.2, rel=0.01)
+
+
+def test_spin_at_the_edge_snaps_onto_it() -> None:
+    axis = Axis("x", "turn_rate", -180.0, 180.0, 100)
+    assert axis.contains(180.0002) and axis.snap(180.0002) == 180.0
+    assert axis.contains(-180.0002) and axis.snap(-180.0002) == -180.0
+    assert not axis.contains(180.0 + 0.5 * axis.step + 0.01)
+    assert not axis.inside(180.0002)
+
+
+# --- findings ---------------------------------------------------------------------------------
+
+
+def _write(tmp_path: Path, clip: Clip, name: str) -> Path:
+    path = tmp_path / f"{name}.bvh"
+    write_bvh_clip(clip, path)
+    return path
+
+
+def _odd_unit_take(tmp_path: Path) -> Path:
+    """A BVH whose unit is no convention (0.2 m per unit): the unit must be guessed."""
+    clip = generate(GaitSpec("odd", speed=1.4, duration=1.0), meters_per_unit=0.2)
+    return _write(tmp_path, clip, "odd")
+
+
+def test_detection_guess_shows_everywhere_and_fails_strict(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _odd_unit_take(tmp_path)
+    _write(tmp_path, generate(GaitSpec("walk", speed=1.4, duration=1.0), meters_per_unit=0.01), "walk")
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: g\nclips:\n  - path: odd.bvh\n  - path: walk.bvh\n"
+        "rules: {select: [detection-guess, units-doubt]}\n"
+    )
+    assert main(["check", str(manifest)]) == 0  # a warning alone passes...
+    text = capsys.readouterr().out
+    assert (
+        "detection-guess" in text
+        and "odd: units guessed as 0.2 m per unit" in text
+        and "skeleton: {units: 0.2}" in text
+    )
+    assert "walk: units" not in text  # centimetres are read from the body, not guessed
+    assert main(["check", str(manifest), "--strict"]) == 1  # ...but not with --strict
+    capsys.readouterr()
+    main(["check", str(manifest), "--format", "json"])
+    findings = json.loads(capsys.readouterr().out)
+    found = json.dumps(findings)
+    assert '"detection-guess"' in found and "BS006" in found
+    main(["check", str(manifest), "--format", "sarif"])
+    sarif = json.loads(capsys.readouterr().out)
+    assert any(r["ruleId"] in ("detection-guess", "BS006") for r in sarif["runs"][0]["results"])
+    # The build's clip table shows it too.
+    out = tmp_path / "out"
+    main(["build", str(manifest), "--out", str(out), "--no-fix"])
+    doc = json.loads(next(out.glob("*.blendspace.json")).read_text())
+    odd = next(s for s in doc["samples"] if s["name"] == "odd")
+    assert odd["clip"]["guesses"] and "skeleton: {units:" in odd["clip"]["guesses"][0]
+    assert "tag guess" in next(out.glob("*.report.html")).read_text()
+
+
+def test_per_entry_skeleton_override_removes_the_guess(tmp_path: Path) -> None:
+    _odd_unit_take(tmp_path)
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: g\nclips:\n  - path: odd.bvh\n    skeleton: {units: 0.2}\n"
+        "skeleton: {units: cm}\n"
+    )
+    space = analyse(manifest)
+    m = space.samples[0].clip.measurement
+    assert m.meters_per_unit == 0.2 and not m.guesses
+    assert m.features["speed"] == pytest.approx(1.4, rel=0.02)
+    assert not [d for d in space.diagnostics if d.rule == "detection-guess"]
+
+
+def test_one_skeleton_one_answer(tmp_path: Path) -> None:
+    """Two clips of one rig read with different units is an error naming the odd one."""
+    for name, spec in (
+        ("a", GaitSpec("a", speed=1.4, duration=1.0)),
+        ("b", GaitSpec("b", speed=1.2, duration=1.0)),
+    ):
+        _write(tmp_path, generate(spec, meters_per_unit=0.01), name)
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: g\nclips:\n  - path: a.bvh\n  - path: b.bvh\n    skeleton: {units: mm}\n"
+    )
+    space = analyse(manifest)
+    doubts = [d for d in space.diagnostics if d.rule == "units-doubt"]
+    assert len(doubts) == 1 and doubts[0].clips == ("b",) and doubts[0].severity == "error"
+    agreed = tmp_path / "ok.yaml"
+    agreed.write_text("schema_version: 1\nname: g\nclips:\n  - path: a.bvh\n  - path: b.bvh\n")
+    assert not [d for d in analyse(agreed).diagnostics if d.rule == "units-doubt"]
+
+
+def test_manifest_range_auto_values(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("schema_version: 1\nname: g\nclips:\n  - path: a.bvh\n    range: automatic\n")
+    assert main(["check", str(bad)]) == 2
+
+
+# --- real clips ---------------------------------------------------------------------------------
+
+
+def test_cmu_range_auto_picks_the_walk(tmp_path: Path) -> None:
+    """SOURCES.md: both takes start and stop inside; 131_01 walks about 46 units (2.6 m) in the
+    middle. range: auto must leave the standing start and the stop out and say what it chose."""
+    shared_data("cmu", "131_01.bvh")
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        f"schema_version: 1\nname: cmu\nclips:\n  - path: '{SHARED_DATA.as_posix()}/cmu/*.bvh'\n    range: auto\n"
+    )
+    space = analyse(manifest)
+    by_name = {s.name: s.clip.measurement for s in space.samples}
+    walk = by_name["131_01"]
+    assert walk.meters_per_unit == pytest.approx(0.0254 / 0.45) and walk.up_axis == "y"
+    assert walk.range_used is not None
+    start, end = walk.range_used
+    assert 3.0 < start < end < 7.0  # the walk between the start (~1.5 s) and the stop (~7 s)
+    assert 0.9 < walk.features["speed"] < 1.4  # a walk, not the take's 0.38 m/s average
+    assert any("range: auto chose" in n for n in walk.notes)
+    shuffle = by_name["131_02"]
+    assert shuffle.range_used is not None and 1.0 < shuffle.range_used[0] < shuffle.range_used[1] < 9.5
+    out = tmp_path / "out"
+    main(["build", str(manifest), "--out", str(out), "--no-fix", "--format", "json"])
+    doc = json.loads(next(out.glob("*.blendspace.json")).read_text())
+    info = next(s for s in doc["samples"] if s["name"] == "131_01")["clip"]
+    assert info["range_auto"] and info["range"] == pytest.approx(list(walk.range_used), abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    "relative",
+    ["cmu/131_01.bvh", "cmu/131_02.bvh", "khronos-fox/Fox.glb", "godot-tps-demo/walking_nogun-cycle.tres"],
+)
+def test_shared_data_measures_without_overrides_or_says_so(relative: str) -> None:
+    """Every shared clip reads as its SOURCES.md says (Y up; CMU ~0.056 m/unit; glTF and Godot
+    metres), and nothing is guessed silently."""
+    from blendspace_pipeline.readers import read_clips
+
+    path = shared_data(*relative.split("/"))
+    for clip in read_clips(path):
+        m = measure(clip, AUTO)
+        assert m.up_axis == "y"
+        expected = 0.0254 / 0.45 if relative.startswith("cmu") else 1.0
+        assert m.meters_per_unit == pytest.approx(expected, rel=1e-6)
+        assert not m.guesses
