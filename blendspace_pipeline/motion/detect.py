@@ -461,8 +461,9 @@ def _unit_from_length(
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:
     """True when the first frame should be dropped as a rest/T-pose frame.
 
-    A rest frame stands out as a jump: the pose (joints relative to the root joint) changes
-    far more between frames 0 and 1 than between any later consecutive frames.
+    A rest frame stands out as a jump: the pose (the body's joints relative to the hips)
+    changes far more between frames 0 and 1 than between any later consecutive frames. Joints
+    above the pelvis (a static top joint, perhaps metres away) are no part of the pose.
     """
     if settings.tpose == "keep" or clip.frame_count < 4:
         return False
@@ -470,8 +471,25 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
         return True
     if not clip.skeleton.has_hierarchy:
         return False
-    local = world_pos - world_pos[:, :1]
+    body = body_joints(clip, settings)
+    pelvis = _lowest_common_ancestor(clip, *body.hips) if body is not None else None
+    if body is not None and pelvis is not None:
+        joints = [pelvis, *clip.skeleton.descendants(pelvis)]
+        anchor = 0.5 * (world_pos[:, body.hips[0]] + world_pos[:, body.hips[1]])
+        local = world_pos[:, joints] - anchor[:, None]
+    else:
+        local = world_pos - world_pos[:, :1]
     change = np.linalg.norm(np.diff(local, axis=0), axis=2).mean(axis=1)
     typical = float(np.median(change[1:]))
     scale = float(np.linalg.norm(local[1], axis=1).max()) or 1.0
-    return bool(change[0] > max(8.0 * typical, 0.05 * scale))
+    if change[0] > max(8.0 * typical, 0.05 * scale):
+        return True
+    if clip.frame_count < 8 or change[0] <= 0.02 * scale:
+        return False
+    # Fast motion (a dash: a stride in 18 frames) moves the limbs almost as far per frame as a
+    # T-pose jump, but smoothly: each frame follows from the next three (third differences are
+    # tiny) except a rest frame, which does not.
+    residual = np.linalg.norm(local[:-3] - 3.0 * local[1:-2] + 3.0 * local[2:-1] - local[3:], axis=2).mean(
+        axis=1
+    )
+    return bool(residual[0] > 5.0 * float(np.percentile(residual[1:], 99)))

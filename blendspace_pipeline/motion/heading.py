@@ -13,14 +13,19 @@ import numpy as np
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 
-def smooth_over_cycle(heading: FloatArray, fps: float, period: float) -> FloatArray:
+def smooth_over_cycle(
+    heading: FloatArray, fps: float, period: float, *, still_ends: tuple[bool, bool] = (False, False)
+) -> FloatArray:
     """``heading`` averaged over a window of one gait cycle centred on each frame.
 
     Pelvis yaw repeats once a stride, so its mean over any whole stride is the same and the
     average is the sway-free facing (exact for a constant turn rate, which stays linear). The
     first and last half cycle, where no whole window fits, continue the averaged facing at its
     own rate there: a walk-turn-walk take keeps its flat ends, a constant turn its slope.
-    Clips shorter than a stride and a bit are returned as they are.
+    An end where the character stands (``still_ends``: start, end) keeps its own facing: a
+    standing pelvis does not sway, and continuing a rate from the start-up or slow-down
+    strides there would only add their uneven sway. Clips shorter than a stride and a bit are
+    returned as they are.
     """
     frames = len(heading)
     window = period * fps  # frames, fractional
@@ -43,13 +48,22 @@ def smooth_over_cycle(heading: FloatArray, fps: float, period: float) -> FloatAr
     averaged = (integral(c + half) - integral(c - half)) / window
     smoothed = heading.copy()
     smoothed[valid] = averaged
-    # Rate at each end from the averaged facing over up to half a cycle beyond the first/last
-    # valid frame.
-    reach = int(max(1, min(len(valid) - 1, round(window))))
-    rate_start = (averaged[reach] - averaged[0]) / reach
-    rate_end = (averaged[-1] - averaged[-1 - reach]) / reach
+    # The averaged facing's own rate at its first and last frame: d/dc of the window mean is
+    # (heading(c + half) - heading(c - half)) / window, two facings one stride apart, so at the
+    # same point of the sway: sway-free, and the local rate (0 on a straight lead-in of a
+    # walk-turn-walk take, the turn rate on an arc).
+    index = np.arange(frames, dtype=np.float64)
+
+    def rate_at(c: float) -> float:
+        ahead = np.interp(c + half, index, heading)
+        behind = np.interp(c - half, index, heading)
+        return float(ahead - behind) / window
+
+    rate_start, rate_end = rate_at(float(valid[0])), rate_at(float(valid[-1]))
     before = centres[: valid[0]]
     after = centres[valid[-1] + 1 :]
-    smoothed[: valid[0]] = averaged[0] - rate_start * (valid[0] - before)
-    smoothed[valid[-1] + 1 :] = averaged[-1] + rate_end * (after - valid[-1])
+    if not still_ends[0]:
+        smoothed[: valid[0]] = averaged[0] - rate_start * (valid[0] - before)
+    if not still_ends[1]:
+        smoothed[valid[-1] + 1 :] = averaged[-1] + rate_end * (after - valid[-1])
     return smoothed

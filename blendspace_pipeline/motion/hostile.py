@@ -49,6 +49,9 @@ class HostileSpec:
     start_cycles: int = 2  # strides of speeding up (from standing)
     steady_cycles: int = 4
     stop_cycles: int = 2
+    # A walk-turn-walk take: this many degrees turned smoothly over the steady strides but the
+    # first and the last (turn_rate is then ignored).
+    turn_total: float | None = None
 
     @property
     def period_frames(self) -> int:
@@ -114,6 +117,10 @@ def take(spec: HostileSpec, *, source: Path | None = None) -> HostileTake:
     step = 1.0 / (sub * spec.fps)
     turned = np.concatenate([[0.0], np.cumsum(0.5 * (fine_amount[1:] + fine_amount[:-1]) * step)])
     fine_heading = np.deg2rad(spec.start_heading + spec.turn_rate * turned)
+    if spec.turn_total is not None:
+        first, last = steady0 + p, max(steady0 + p + 1, steady1 - p)
+        u = np.clip((fine * spec.fps - first) / (last - first), 0.0, 1.0)
+        fine_heading = np.deg2rad(spec.start_heading + spec.turn_total * u * u * (3.0 - 2.0 * u))
     travel = fine_heading + np.deg2rad(spec.direction)
     velocity = spec.speed * fine_amount[:, None] * np.stack([np.sin(travel), np.cos(travel)], axis=-1)
     path = np.concatenate([np.zeros((1, 2)), np.cumsum(0.5 * (velocity[1:] + velocity[:-1]) * step, axis=0)])
@@ -185,7 +192,7 @@ def grid(*, seed: int = 10) -> list[HostileSpec]:
         ("walk_turn_left", 1.4, 0.0, 30.0, 1.3),
         ("run_turn_right", 3.5, 0.0, -45.0, 2.5),
     ]
-    specs = []
+    specs: list[HostileSpec] = []
     for up in ("y", "z"):
         for unit in UNITS:
             for gait, speed, direction, turn_rate, stride in gaits:
@@ -206,4 +213,48 @@ def grid(*, seed: int = 10) -> list[HostileSpec]:
                         stride_length=stride,
                     )
                 )
+    return specs
+
+
+def studio_set(*, seed: int = 118) -> list[HostileSpec]:
+    """Takes like the held-out studio set of issue 10: 30 fps BVH in centimetres, Y up, a static
+    `Root` at the origin with the hips 1-4 m away, a T-pose first frame, steady walks, runs,
+    dashes, backward and diagonal walks and walking 90-degree turns, pelvis sway up to +-25 deg,
+    measured whole (no `range:`)."""
+    rng = np.random.default_rng(seed)
+    kinds = [
+        ("walk", 1.4, 0.0, None, 1.35),
+        ("run", 3.6, 0.0, None, 2.5),
+        ("dash", 6.0, 0.0, None, 3.6),
+        ("walk_back", 1.1, 180.0, None, 1.1),
+        ("diagonal_left", 1.3, 45.0, None, 1.25),
+        ("diagonal_right", 1.3, -45.0, None, 1.25),
+        ("turn_left", 1.3, 0.0, 90.0, 1.3),
+        ("turn_right", 1.3, 0.0, -90.0, 1.3),
+    ]
+    specs = []
+    for index in range(118):
+        kind, speed, direction, turn, stride = kinds[index % len(kinds)]
+        distance = float(rng.uniform(1.0, 4.0))
+        angle = float(rng.uniform(0.0, 2.0 * np.pi))
+        scale = float(rng.uniform(0.9, 1.1))
+        specs.append(
+            HostileSpec(
+                name=f"{kind}_{index:03d}",
+                speed=speed * scale,
+                direction=direction,
+                up="y",
+                unit="cm",
+                fps=30.0,
+                hips_start=(distance * np.cos(angle), distance * np.sin(angle)),
+                start_heading=float(rng.uniform(-180.0, 180.0)),
+                pelvis_yaw=float(rng.uniform(0.0, 25.0)),
+                stride_length=stride * scale,
+                stand=0.0,
+                start_cycles=0,
+                steady_cycles=int(rng.integers(3, 7)) + (2 if turn is not None else 0),
+                stop_cycles=0,
+                turn_total=turn,
+            )
+        )
     return specs

@@ -18,7 +18,7 @@ import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal
+from blendspace_pipeline.motion.clip_ops.phase import GaitCycle, detect_cycle, foot_signal
 from blendspace_pipeline.motion.detect import (
     DetectionGuess,
     RigSettings,
@@ -190,15 +190,13 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     forward = facing.vectors(world_rot, world_pos) @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
     cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
-    if cycle is not None:
-        # The hip line sways with the pelvis (up to +-25 deg on swaggering gaits) once a stride:
-        # facing averaged over a whole stride cancels it. The stride is timed by the foot
-        # crossings themselves when there are several (exact on the take's own strides).
-        starts = stride_starts(used, settings, (world_rot, world_pos))
-        period = cycle.period
-        if starts is not None and len(starts) >= 2:
-            period = float(starts[-1] - starts[0]) / (len(starts) - 1) / used.fps
-        heading = smooth_over_cycle(heading, used.fps, period)
+    # The hip line sways with the pelvis (up to +-25 deg on swaggering gaits) once a stride:
+    # facing averaged over a whole stride cancels it.
+    period = _sway_period(stride_starts(used, settings, (world_rot, world_pos)), cycle, used.fps)
+    if period is not None:
+        heading = smooth_over_cycle(
+            heading, used.fps, period, still_ends=_still_ends(positions, used.fps, period)
+        )
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     return Measurement(
@@ -221,6 +219,40 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         detected_up=up_note is not None,
         detected_units=units_source.startswith(("detected", "guessed")),
     )
+
+
+def _still_ends(positions: FloatArray, fps: float, period: float) -> tuple[bool, bool]:
+    """Whether the character stands over the first and the last half stride: it moves less
+    than a quarter of its average speed there (a take that starts or ends standing)."""
+    frames = len(positions)
+    reach = int(min(frames - 1, max(1, round(0.5 * period * fps))))
+    path = float(np.linalg.norm(np.diff(positions, axis=0), axis=1).sum())
+    if path <= 0.0:
+        return True, True
+    typical = path / (frames - 1) * reach
+    start = float(np.linalg.norm(positions[reach] - positions[0]))
+    end = float(np.linalg.norm(positions[-1] - positions[-1 - reach]))
+    return start < 0.25 * typical, end < 0.25 * typical
+
+
+def _sway_period(starts: FloatArray | None, cycle: GaitCycle | None, fps: float) -> float | None:
+    """Seconds per stride to average the facing over: timed by the foot crossings themselves
+    when there are several at a steady rhythm (exact on the take's own strides, and found in
+    whole takes with a start and a stop, where `detect_cycle` sees no single rhythm), else the
+    gait cycle's period; None without a gait."""
+    if starts is not None and len(starts) >= 3:
+        lengths = np.diff(starts)
+        if lengths.std() <= _STRIDE_SPREAD * lengths.mean():
+            return float(starts[-1] - starts[0]) / (len(starts) - 1) / fps
+    if cycle is None:
+        return None
+    if starts is not None and len(starts) == 2:
+        return float(starts[1] - starts[0]) / fps
+    return cycle.period
+
+
+# Strides may differ this much (coefficient of variation) and still time the sway averaging.
+_STRIDE_SPREAD = 0.35
 
 
 def skeleton_key(clip: Clip) -> str:
