@@ -484,6 +484,14 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     scale = float(np.linalg.norm(local[1], axis=1).max()) or 1.0
     if change[0] > max(8.0 * typical, 0.05 * scale):
         return True
+    # Heading-free pose: each body joint's distance from the hips. A rest pose (arms out, legs
+    # straight) is unlike every frame of the take, however fast the take moves or turns and
+    # however the mocap jitters; a take's own first frame is as close to its next as any frame.
+    shape = np.linalg.norm(local, axis=2)  # (F, J)
+    steps = np.abs(np.diff(shape, axis=0)).mean(axis=1)
+    nearest = float(np.abs(shape[1:] - shape[0]).mean(axis=1).min())
+    if nearest > max(5.0 * float(np.median(steps[1:])), 0.02 * scale):
+        return True
     if clip.frame_count < 8 or change[0] <= 0.02 * scale:
         return False
     # Fast motion (a dash: a stride in 18 frames) moves the limbs almost as far per frame as a

@@ -52,6 +52,12 @@ class HostileSpec:
     # A walk-turn-walk take: this many degrees turned smoothly over the steady strides but the
     # first and the last (turn_rate is then ignored).
     turn_total: float | None = None
+    # Real-take untidiness: each stride's length varies by up to this fraction (the sway then
+    # no longer repeats exactly), the pelvis yaw carries a second harmonic, and joints jitter.
+    cadence_jitter: float = 0.0
+    sway_harmonic: float = 0.0  # amplitude of the 2nd harmonic, relative to the first
+    noise: float = 0.0  # metres of hip position noise (and 3x as many radians of pelvis yaw noise)
+    seed: int = 0
 
     @property
     def period_frames(self) -> int:
@@ -95,6 +101,14 @@ def _envelope(frames: int, spec: HostileSpec) -> tuple[FloatArray, FloatArray, i
     falling = (index > steady1) & (index <= stop)
     amount[falling] = 1.0 - smooth((index[falling] - steady1) / max(1, stop - steady1))
     phase = 2.0 * np.pi * (index - start) / p
+    if spec.cadence_jitter > 0.0:
+        # Stride k lasts p * (1 + jitter * u_k): the phase runs through whole strides at uneven
+        # rates (the ground path, and so the truth, does not change).
+        rng = np.random.default_rng(spec.seed)
+        strides = int(np.ceil((frames - start) / p)) + 2
+        lengths = p * (1.0 + spec.cadence_jitter * rng.uniform(-1.0, 1.0, strides))
+        ends = start + np.concatenate([[0.0], np.cumsum(lengths)])
+        phase = 2.0 * np.pi * np.interp(index, ends, np.arange(len(ends), dtype=np.float64))
     phase[index < start] = 0.0
     return amount, phase, steady0, steady1
 
@@ -140,9 +154,18 @@ def take(spec: HostileSpec, *, source: Path | None = None) -> HostileTake:
     bob = 0.025 * amount * np.cos(2.0 * phase)
     hips_world = np.stack([ground[:, 0], np.full(frames, HIP_HEIGHT), ground[:, 1]], axis=-1)
     translations[:, 1] = hips_world + left * sway[:, None] + _Y * bob[:, None]
-    yaw = np.deg2rad(spec.pelvis_yaw) * amount * np.sin(phase)
+    yaw = (
+        np.deg2rad(spec.pelvis_yaw)
+        * amount
+        * (np.sin(phase) + spec.sway_harmonic * np.sin(2.0 * phase + 0.5))
+    )
     rotations[:, 1] = quat.multiply(facing, quat.from_axis_angle(_Y, yaw))
     _legs_and_arms(rotations, joints, phase, amount)
+    if spec.noise > 0.0:
+        rng = np.random.default_rng(spec.seed + 1)
+        translations[:, 1] += rng.normal(0.0, spec.noise, (frames, 3))
+        jitter = quat.from_axis_angle(_Y, rng.normal(0.0, 3.0 * spec.noise, frames))  # 3 mm: 0.5 deg of yaw
+        rotations[:, 1] = quat.multiply(rotations[:, 1], jitter)
     if spec.tpose_first_frame:
         rotations[0] = quat.IDENTITY
     translations, rotations = _convert_up(translations, rotations, spec.up, skeleton)
@@ -255,6 +278,10 @@ def studio_set(*, seed: int = 118) -> list[HostileSpec]:
                 steady_cycles=int(rng.integers(3, 7)) + (2 if turn is not None else 0),
                 stop_cycles=0,
                 turn_total=turn,
+                cadence_jitter=0.06,
+                sway_harmonic=0.3,
+                noise=0.003,
+                seed=index,
             )
         )
     return specs

@@ -18,7 +18,8 @@ import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.clip_ops.phase import GaitCycle, detect_cycle, foot_signal
+from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
+from blendspace_pipeline.motion.clip_ops.sway import stride_starts, sway_free
 from blendspace_pipeline.motion.detect import (
     DetectionGuess,
     RigSettings,
@@ -29,7 +30,6 @@ from blendspace_pipeline.motion.detect import (
     resolve_up_guess,
     up_vector,
 )
-from blendspace_pipeline.motion.heading import smooth_over_cycle
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 FEATURE_UNITS = {
@@ -190,13 +190,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     forward = facing.vectors(world_rot, world_pos) @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
     cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
-    # The hip line sways with the pelvis (up to +-25 deg on swaggering gaits) once a stride:
-    # facing averaged over a whole stride cancels it.
-    period = _sway_period(stride_starts(used, settings, (world_rot, world_pos)), cycle, used.fps)
-    if period is not None:
-        heading = smooth_over_cycle(
-            heading, used.fps, period, still_ends=_still_ends(positions, used.fps, period)
-        )
+    # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
+    heading = sway_free(heading, used, settings, (world_rot, world_pos), cycle, positions)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     return Measurement(
@@ -219,40 +214,6 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         detected_up=up_note is not None,
         detected_units=units_source.startswith(("detected", "guessed")),
     )
-
-
-def _still_ends(positions: FloatArray, fps: float, period: float) -> tuple[bool, bool]:
-    """Whether the character stands over the first and the last half stride: it moves less
-    than a quarter of its average speed there (a take that starts or ends standing)."""
-    frames = len(positions)
-    reach = int(min(frames - 1, max(1, round(0.5 * period * fps))))
-    path = float(np.linalg.norm(np.diff(positions, axis=0), axis=1).sum())
-    if path <= 0.0:
-        return True, True
-    typical = path / (frames - 1) * reach
-    start = float(np.linalg.norm(positions[reach] - positions[0]))
-    end = float(np.linalg.norm(positions[-1] - positions[-1 - reach]))
-    return start < 0.25 * typical, end < 0.25 * typical
-
-
-def _sway_period(starts: FloatArray | None, cycle: GaitCycle | None, fps: float) -> float | None:
-    """Seconds per stride to average the facing over: timed by the foot crossings themselves
-    when there are several at a steady rhythm (exact on the take's own strides, and found in
-    whole takes with a start and a stop, where `detect_cycle` sees no single rhythm), else the
-    gait cycle's period; None without a gait."""
-    if starts is not None and len(starts) >= 3:
-        lengths = np.diff(starts)
-        if lengths.std() <= _STRIDE_SPREAD * lengths.mean():
-            return float(starts[-1] - starts[0]) / (len(starts) - 1) / fps
-    if cycle is None:
-        return None
-    if starts is not None and len(starts) == 2:
-        return float(starts[1] - starts[0]) / fps
-    return cycle.period
-
-
-# Strides may differ this much (coefficient of variation) and still time the sway averaging.
-_STRIDE_SPREAD = 0.35
 
 
 def skeleton_key(clip: Clip) -> str:
@@ -284,9 +245,10 @@ def steady_span(
     ground positions, any unit). The steady speed is the median of the faster half of the
     cycles, so a take with long starts and stops still finds its walk.
     """
-    ups = stride_starts(clip, settings, posed)
-    if ups is None or len(ups) < 2:
+    found = stride_starts(clip, settings, posed)
+    if found is None or len(found[0]) < 2:
         return None
+    ups = found[0]
     frames = np.arange(len(ground), dtype=np.float64)
     at = np.stack([np.interp(ups, frames, ground[:, 0]), np.interp(ups, frames, ground[:, 1])], axis=1)
     lengths = np.diff(ups)
@@ -313,38 +275,6 @@ def steady_span(
     first = int(np.floor(ups[best[0]] + 0.5))
     last = int(np.floor(ups[best[1]] + 0.5))
     return first, min(last, len(ground) - 1) + 1
-
-
-def stride_starts(
-    clip: Clip, settings: RigSettings, posed: tuple[FloatArray, FloatArray]
-) -> FloatArray | None:
-    """Fractional frames where the left foot passes the right one going forward (along the
-    hip-line facing): one per stride. None for a rig without recognisable legs."""
-    found = foot_signal(clip, settings, posed)
-    if found is None:
-        return None
-    signal = found[0]
-    centred = signal - np.median(signal)
-    amplitude = float(np.percentile(np.abs(centred), 95))
-    if amplitude <= 0.0:
-        return None
-    return _upward_crossings(centred, 0.25 * amplitude)
-
-
-def _upward_crossings(signal: FloatArray, hysteresis: float) -> FloatArray:
-    """Fractional frames where ``signal`` crosses zero going up after having been below
-    ``-hysteresis`` (wiggles smaller than that are not steps)."""
-    below = signal < -hysteresis
-    ups = []
-    armed = False
-    for i in range(1, len(signal)):
-        if below[i - 1]:
-            armed = True
-        a, b = float(signal[i - 1]), float(signal[i])
-        if armed and a < 0.0 <= b:
-            ups.append(i - 1 + a / (a - b) if a != b else float(i))
-            armed = False
-    return np.array(ups, dtype=np.float64)
 
 
 def _ground_basis(up_axis: str) -> FloatArray:

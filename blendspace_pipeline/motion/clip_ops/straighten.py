@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.blend import without_rest_frame
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
-from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
 from blendspace_pipeline.motion.clip_ops.root_motion import compose, decompose, integrate, step_velocities
+from blendspace_pipeline.motion.clip_ops.sway import sway_free
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.heading import smooth_over_cycle
 
 
 def straighten_clip(clip: Clip, *, settings: RigSettings, name: str) -> Clip:
@@ -31,8 +30,7 @@ def straighten_clip(clip: Clip, *, settings: RigSettings, name: str) -> Clip:
     motion = decompose(clip, settings)
     velocities, yaw_rates = step_velocities(motion.heading, motion.ground, clip.fps)
     # The turn `measure` reads: facing averaged over a gait cycle, so pelvis sway is not "turn".
-    cycle = detect_cycle(clip, settings)
-    facing = motion.heading if cycle is None else smooth_over_cycle(motion.heading, clip.fps, cycle.period)
+    facing = sway_free(motion.heading, clip, settings, forward_kinematics(clip), positions=motion.ground)
     turn = float(facing[-1] - facing[0])
     straight = yaw_rates - turn / clip.duration
     heading, ground = integrate(velocities, straight, clip.fps, float(motion.heading[0]), motion.ground[0])
