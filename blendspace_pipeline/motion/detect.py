@@ -444,7 +444,12 @@ def _unit_from_length(
     fits = {unit: scale for unit, scale in _CONVENTIONS.items() if low <= length * scale <= high}
     if fits:
         unit = min(fits, key=lambda u: abs(np.log(length * fits[u] / reference)))
-        return fits[unit], f"detected ({unit}: {what} {length * fits[unit]:.2f} m)", None
+        metres = length * fits[unit]
+        # Confidence: 1 at the reference, falling to 0 at the plausible range's edge (in log
+        # scale, where the next convention's range begins 2.2x or more away).
+        edge = np.log(high / reference) if metres >= reference else np.log(reference / low)
+        confidence = max(0.0, 1.0 - abs(float(np.log(metres / reference))) / float(edge))
+        return fits[unit], f"detected ({unit}: {what} {metres:.2f} m, confidence {confidence:.2f})", None
     scale = reference / length
     override = f"skeleton: {{units: {scale:.4g}}}"
     evidence = (

@@ -73,9 +73,6 @@ class Measurement:
     range_used: tuple[float, float] | None = None
     # `skeleton_key`: clips of one rig must agree on the up axis and unit they were read with.
     skeleton_key: str = ""
-    # Whether the up axis and the unit were read from the body (not the file or the manifest).
-    detected_up: bool = False
-    detected_units: bool = False
 
     def __post_init__(self) -> None:
         # The cache stores measurements as JSON (`pipeline.cache`): rebuild the nested values.
@@ -211,8 +208,6 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         guesses=guesses,
         range_used=range_used if (explicit is not None or auto or first > 0) else None,
         skeleton_key=skeleton_key(clip),
-        detected_up=up_note is not None,
-        detected_units=units_source.startswith(("detected", "guessed")),
     )
 
 
