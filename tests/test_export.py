@@ -23,7 +23,7 @@ from scipy.spatial import Delaunay
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.exporters import export
+from blendspace_pipeline.exporters import ExportContext, export
 from blendspace_pipeline.space.document import BlendSpaceDocument
 
 # --- documents ------------------------------------------------------------------------------
@@ -396,7 +396,8 @@ def test_unreal_script_sets_axes_and_samples_in_unreal_units() -> None:
     assert "blend_space.set_editor_property('sample_data', samples)" in calls
     assert "parameter.set_editor_property('grid_num', divisions)" in calls
     assert "unreal.Vector(x, y, 0.0)" in calls
-    assert "resave" in result.text or "save the asset" in result.text
+    assert "unreal.EditorAssetLibrary.save_loaded_asset(blend_space, False)" in calls
+    assert "task.set_editor_property('automated', True)" in calls  # imports raise no dialog
 
 
 class _Struct:
@@ -410,14 +411,43 @@ class _Struct:
     def get_editor_property(self, name: str) -> Any:
         return self.props[name]
 
+    def modify(self) -> None:
+        self.props["modified"] = True
 
-def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any]]:
-    """The few `unreal` names the script uses, recording what it does to the asset."""
-    record: dict[str, Any] = {}
+
+SKELETON = "/Game/Characters/Mannequins/Meshes/SK_Mannequin"
+
+
+def _stand_in_unreal(
+    missing: set[str], command_line: str = "UnrealEditor.exe", other_skeleton: set[str] | None = None
+) -> tuple[types.ModuleType, dict[str, Any]]:
+    """The `unreal` names the script uses, recording what it does to the asset and the files it imports."""
+    record: dict[str, Any] = {"imported": [], "errors": []}
     unreal = types.ModuleType("unreal")
+    assets: dict[str, Any] = {}
 
     class BlendSpace(_Struct):
         pass
+
+    class AnimSequence(_Struct):
+        pass
+
+    class Vector(tuple[float, ...]):
+        x = property(lambda self: self[0])
+        y = property(lambda self: self[1])
+
+    def load_asset(path: str) -> Any:
+        if path in missing:
+            return None
+        if path not in assets:
+            if path == SKELETON:
+                assets[path] = _Struct(path)
+            else:
+                sequence = AnimSequence(path)
+                owner = "/Game/Other" if path in (other_skeleton or set()) else SKELETON
+                sequence.set_editor_property("skeleton", load_asset(owner) if owner == SKELETON else owner)
+                assets[path] = sequence
+        return assets[path]
 
     def create_asset(name: str, path: str, cls: type[_Struct], factory: _Struct) -> _Struct:
         asset = cls()
@@ -425,15 +455,29 @@ def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any
         record.update(created=(name, path, factory.props), asset=asset)
         return asset
 
+    def import_asset_tasks(tasks: list[_Struct]) -> None:
+        for task in tasks:
+            record["imported"].append(dict(task.props))
+            destination = f"{task.props['destination_path']}/{task.props['destination_name']}"
+            task.set_editor_property("imported_object_paths", [destination])
+
+    def fail(text: str) -> None:
+        record["errors"].append(text)
+
     unreal.BlendSpace = BlendSpace  # type: ignore[attr-defined]
+    unreal.AnimSequence = AnimSequence  # type: ignore[attr-defined]
     unreal.BlendParameter = unreal.BlendSample = unreal.BlendSpaceFactoryNew = _Struct  # type: ignore[attr-defined]
-    unreal.Vector = lambda *xyz: tuple(xyz)  # type: ignore[attr-defined]
-    unreal.load_asset = lambda path: None if path in missing else f"asset:{path}"  # type: ignore[attr-defined]
+    unreal.AssetImportTask = _Struct  # type: ignore[attr-defined]
+    unreal.Vector = lambda *xyz: Vector(xyz)  # type: ignore[attr-defined]
+    unreal.load_asset = load_asset  # type: ignore[attr-defined]
     unreal.log = lambda text: record.setdefault("log", text)  # type: ignore[attr-defined]
-    tools = types.SimpleNamespace(create_asset=create_asset)
+    unreal.log_error = fail  # type: ignore[attr-defined]
+    tools = types.SimpleNamespace(create_asset=create_asset, import_asset_tasks=import_asset_tasks)
     unreal.AssetToolsHelpers = types.SimpleNamespace(get_asset_tools=lambda: tools)  # type: ignore[attr-defined]
+    unreal.SystemLibrary = types.SimpleNamespace(get_command_line=lambda: command_line)  # type: ignore[attr-defined]
     unreal.EditorAssetLibrary = types.SimpleNamespace(  # type: ignore[attr-defined]
-        does_asset_exist=lambda path: False, save_loaded_asset=lambda asset: record.setdefault("saved", asset)
+        does_asset_exist=lambda path: False,
+        save_loaded_asset=lambda asset, only_if_dirty: record.setdefault("saved", asset) is asset,
     )
     editor = types.SimpleNamespace(open_editor_for_assets=lambda assets: record.setdefault("opened", assets))
     unreal.AssetEditorSubsystem = object  # type: ignore[attr-defined]
@@ -441,8 +485,10 @@ def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any
     return unreal, record
 
 
-def _run_script(script: str, missing: set[str], monkeypatch: pytest.MonkeyPatch) -> dict[str, Any]:
-    unreal, record = _stand_in_unreal(missing)
+def _run_script(
+    script: str, missing: set[str], monkeypatch: pytest.MonkeyPatch, **options: Any
+) -> dict[str, Any]:
+    unreal, record = _stand_in_unreal(missing, **options)
     monkeypatch.setitem(sys.modules, "unreal", unreal)
     exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
     return record
@@ -458,18 +504,52 @@ def test_unreal_script_runs_and_builds_the_asset(monkeypatch: pytest.MonkeyPatch
     assert (y_axis.props["min"], y_axis.props["max"], y_axis.props["grid_num"]) == (-300.0, 600.0, 90)
     assert x_axis.props["snap_to_grid"] and y_axis.props["display_name"] == "speed (cm/s)"
     samples = asset.get_editor_property("sample_data")
-    assert [s.props["animation"] for s in samples] == [f"asset:/Game/Animations/{n}" for n in LAYOUT]
+    assert [s.props["animation"].args[0] for s in samples] == [f"/Game/Animations/{n}" for n in LAYOUT]
     values = [s.props["sample_value"] for s in samples]
     assert values == [pytest.approx((-x, y * 100.0, 0.0)) for x, y in LAYOUT.values()]
-    assert record["saved"] is asset and record["opened"] == [asset]
+    assert asset.props["modified"] and record["saved"] is asset and record["opened"] == [asset]
+
+
+def test_unreal_script_imports_generated_clips_and_runs_headless(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    doc = make_doc(LAYOUT)
+    raw = doc.model_dump()
+    raw["samples"][1]["generated"] = True
+    glb = tmp_path / "clips" / "walk.glb"
+    context = ExportContext(clip_files={"walk": [glb]})
+    script = export(BlendSpaceDocument.model_validate(raw), "unreal", context=context).text
+    assert "'walk'" not in script.split("ANIMATIONS = {")[1].split("}")[0]  # imported, not listed
+    record = _run_script(script, set(), monkeypatch, command_line="UnrealEditor-Cmd -run=pythonscript")
+    (task,) = record["imported"]
+    assert task["filename"] == str(glb) and task["automated"] and task["destination_name"] == "walk"
+    samples = record["asset"].get_editor_property("sample_data")
+    assert samples[1].props["animation"].args[0] == "/Game/Animations/Generated/walk"
+    assert record["saved"] is record["asset"] and "opened" not in record  # no editor window headless
 
 
 def test_unreal_script_stops_before_touching_anything_when_animations_are_missing(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     script = export(make_doc(LAYOUT), "unreal").text
-    with pytest.raises(RuntimeError, match="walk: /Game/Animations/walk"):
+    with pytest.raises(RuntimeError, match="walk: /Game/Animations/walk not found"):
         _run_script(script, {"/Game/Animations/walk"}, monkeypatch)
+
+
+def test_unreal_script_fails_loudly_on_a_missing_skeleton_or_a_foreign_clip(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    script = export(make_doc(LAYOUT), "unreal").text
+    with pytest.raises(RuntimeError, match="skeleton not found"):
+        _run_script(script, {SKELETON}, monkeypatch)
+    with pytest.raises(RuntimeError, match="run: /Game/Animations/run is not an animation of"):
+        _run_script(script, set(), monkeypatch, other_skeleton={"/Game/Animations/run"})
+    # Headless, a failure is a non-zero exit, and nothing was created or saved.
+    unreal, record = _stand_in_unreal({SKELETON}, command_line="UnrealEditor-Cmd -run=pythonscript")
+    monkeypatch.setitem(sys.modules, "unreal", unreal)
+    with pytest.raises(SystemExit) as stopped:
+        exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
+    assert stopped.value.code == 1 and "created" not in record and "saved" not in record
 
 
 def test_unreal_notes_duplicate_positions() -> None:
