@@ -297,6 +297,91 @@ def test_godot_string_escapes_survive_the_parser() -> None:
     assert 'a "quoted" \\ name' in read_godot(export(doc, "godot").text).points
 
 
+def _replay_godot_bounds(properties: list[tuple[str, Any]]) -> tuple[list[float], list[float]]:
+    """Godot 4's loader calls each setter in file order on a new AnimationNodeBlendSpace2D.
+
+    animation_blend_space_2d.cpp: the constructor sets min_space (-1, -1) and max_space (1, 1);
+    set_min_space lowers a component >= max_space to max - 1, set_max_space raises a component
+    <= min_space to min + 1. Vector2 is float32.
+    """
+    low, high = [np.float32(-1.0)] * 2, [np.float32(1.0)] * 2
+    for key, value in properties:
+        if key == "min_space":
+            low = [np.float32(v) for v in value.args]
+            low = [lo if lo < hi else hi - np.float32(1) for lo, hi in zip(low, high, strict=True)]
+        elif key == "max_space":
+            high = [np.float32(v) for v in value.args]
+            high = [hi if hi > lo else lo + np.float32(1) for lo, hi in zip(low, high, strict=True)]
+    return [float(v) for v in low], [float(v) for v in high]
+
+
+RANGES = [(1.0, 6.0), (-6.0, -1.0), (-1.0, 1.0), (0.0, 6.0), (-3.0, 6.0), (-6.0, 0.0), (0.25, 0.75),
+          (-0.75, -0.25), (2.0, 2.5), (-1.0, 3.0), (-3.0, -0.5), (0.999, 1.5), (-1.5, -1.0)]  # fmt: skip
+
+
+@pytest.mark.parametrize("x_range", RANGES)
+@pytest.mark.parametrize("y_range", RANGES)
+def test_godot_loads_the_bounds_exactly_for_any_range(
+    x_range: tuple[float, float], y_range: tuple[float, float]
+) -> None:
+    axes: tuple[Axis, Axis] = (
+        ("lateral_speed", *x_range, 10, "m/s"),
+        ("forward_speed", *y_range, 10, "m/s"),
+    )
+    (x0, x1), (y0, y1) = x_range, y_range
+    doc = make_doc({"a": (x0, y0), "b": (x1, y0), "c": (x0, y1)}, axes=axes)
+    properties = read_godot(export(doc, "godot").text).resource.properties
+    low, high = _replay_godot_bounds(properties)
+    assert low == pytest.approx([x0, y0], abs=1e-6) and high == pytest.approx([x1, y1], abs=1e-6)
+
+
+def test_the_bounds_replay_catches_the_old_min_first_order() -> None:
+    # The test above can fail: a run-only axis written min first loads as 0..6 (the bug it guards).
+    old = [("min_space", Constructor("Vector2", [1, -1])), ("max_space", Constructor("Vector2", [6, 1]))]
+    assert _replay_godot_bounds(old) == ([0.0, -1.0], [6.0, 1.0])
+    old_max_first = [
+        ("max_space", Constructor("Vector2", [1, -1])),
+        ("min_space", Constructor("Vector2", [-1, -6])),
+    ]
+    assert _replay_godot_bounds(old_max_first) == ([-1.0, -6.0], [1.0, 0.0])
+
+
+def test_godot_header_has_a_stable_uid_and_a_reexport_keeps_godots() -> None:
+    doc = make_doc(LAYOUT)
+    first = read_godot(export(doc, "godot").text).header.attributes["uid"]
+    assert re.fullmatch(r"uid://[a-y0-8]{1,13}", first)
+    assert read_godot(export(doc, "godot").text).header.attributes["uid"] == first
+    # Godot rewrote the file with its own uid: the next export keeps it.
+    previous = export(doc, "godot").text.replace(first, "uid://cs1k22tdf04k4")
+    again = export(doc, "godot", context=ExportContext(previous=previous)).text
+    assert read_godot(again).header.attributes["uid"] == "uid://cs1k22tdf04k4"
+
+
+def test_godot_writes_fields_as_godot_4_does_in_the_tps_demo() -> None:
+    # godotengine/tps-demo player/player.tscn at 117eca0 (Godot 4, format=3) holds the strafe space:
+    #   [sub_resource type="AnimationNodeAnimation" id="19"] / animation = &"strafe_left" ...
+    #   blend_point_0/node = SubResource("19") / blend_point_0/pos = Vector2(1, 0) ...
+    # The same layout exported by us uses the same types, keys, order and literal syntax.
+    layout = {"strafe_left": (1.0, 0.0), "strafe_right": (-1.0, 0.0), "strafe_back": (0.0, -1.0),
+              "strafe_front": (0.0, 1.0), "Idlecombat": (0.0, 0.0)}  # fmt: skip
+    axes: tuple[Axis, Axis] = (
+        ("lateral_speed", -1.0, 1.0, 20, "m/s"),
+        ("forward_speed", -1.0, 1.0, 20, "m/s"),
+    )
+    text = export(make_doc(layout, axes=axes), "godot").text
+    assert text.startswith('[gd_resource type="AnimationNodeBlendSpace2D" load_steps=6 format=3 uid="uid://')
+    assert (
+        '[sub_resource type="AnimationNodeAnimation" id="AnimationNodeAnimation_0"]\nanimation = &"strafe_left"\n'
+        in text
+    )
+    expected = [
+        f'blend_point_{i}/node = SubResource("AnimationNodeAnimation_{i}")\nblend_point_{i}/pos = Vector2({x:g}, {y:g})'
+        for i, (x, y) in enumerate(layout.values())
+    ]
+    assert "\n".join(expected) in text
+    assert "min_space = Vector2(-1, -1)\nmax_space = Vector2(1, 1)\n" in text
+
+
 # --- Unity --------------------------------------------------------------------------------------
 
 UNITY_TAG = "tag:unity3d.com,2011:"
@@ -361,6 +446,99 @@ def test_unity_export_is_a_controller_with_a_freeform_cartesian_tree() -> None:
     assert positions == [pytest.approx((-x, y)) for x, y in LAYOUT.values()]
     assert any("gradient bands" in note for note in result.notes)
     assert any("turn_rate flipped" in note for note in result.notes)
+
+
+# A Unity project as Unity lays it out: an FBX whose ModelImporter .meta names its takes in
+# internalIDToNameTable (Unity 2019.3+), an older FBX meta with fileIDToRecycleName, and a native .anim.
+_FBX_META = """fileFormatVersion: 2
+guid: {guid}
+ModelImporter:
+  serializedVersion: 21300
+  internalIDToNameTable:
+  - first:
+      74: -203655887218126122
+    second: walk
+  - first:
+      74: 1827226128182048838
+    second: run
+  externalObjects: {{}}
+  materials:
+    materialImportMode: 2
+  animations:
+    legacyGenerateAnimations: 4
+    clipAnimations: []
+"""
+_OLD_FBX_META = """fileFormatVersion: 2
+guid: {guid}
+timeCreated: 1520000000
+ModelImporter:
+  serializedVersion: 22
+  fileIDToRecycleName:
+    100000: Hips
+    400000: Hips
+    7400000: Take 001
+  materials:
+    importMaterials: 1
+"""
+_ANIM_META = """fileFormatVersion: 2
+guid: {guid}
+NativeFormatImporter:
+  externalObjects: {{}}
+  mainObjectFileID: 7400000
+  userData: 
+"""
+GUIDS = {"loco": "1f6f6d1b7a0e4f3c9d2b5a8c7e6f5d4c", "back": "0a1b2c3d4e5f60718293a4b5c6d7e8f9",
+         "idle": "abcdefabcdefabcdefabcdefabcdef01"}  # fmt: skip
+
+
+def _unity_project(root: Path) -> Path:
+    clips = root / "Assets" / "Animations"
+    clips.mkdir(parents=True)
+    (clips / "loco.fbx.meta").write_text(_FBX_META.format(guid=GUIDS["loco"]), encoding="utf-8")
+    (clips / "back.fbx.meta").write_text(_OLD_FBX_META.format(guid=GUIDS["back"]), encoding="utf-8")
+    (clips / "idle.anim.meta").write_text(_ANIM_META.format(guid=GUIDS["idle"]), encoding="utf-8")
+    return root
+
+
+def _motions(text: str) -> list[dict[str, Any]]:
+    tree = _of_class(read_unity(text), 206)[1]
+    return [dict(child["m_Motion"]) for child in tree["m_Childs"]]
+
+
+def test_unity_children_reference_the_clips_guids_from_the_project(tmp_path: Path) -> None:
+    context = ExportContext(unity_project=_unity_project(tmp_path / "Game"))
+    result = export(make_doc(LAYOUT), "unity", context=context)
+    motions = dict(zip(LAYOUT, _motions(result.text), strict=True))
+    assert motions["walk"] == {"fileID": -203655887218126122, "guid": GUIDS["loco"], "type": 3}
+    assert motions["run"] == {"fileID": 1827226128182048838, "guid": GUIDS["loco"], "type": 3}
+    assert motions["back"] == {"fileID": 7400000, "guid": GUIDS["back"], "type": 3}  # single take, by file
+    assert motions["idle"] == {"fileID": 7400000, "guid": GUIDS["idle"], "type": 2}  # a native .anim
+    assert motions["turn_l"] == {"fileID": 0}
+    (note,) = [n for n in result.notes if n.startswith("Motions not assigned")]
+    assert "4: turn_l" in note and ": walk," not in note
+
+
+def test_unity_reexport_keeps_hand_assignments(tmp_path: Path) -> None:
+    first = export(make_doc(LAYOUT), "unity").text
+    # The user assigned turn_l (child 4, at x = -90 in Unity's turning sign) by hand in Unity.
+    hand = "{fileID: 7400000, guid: 0123456789abcdef0123456789abcdef, type: 3}"
+    children = first.split("  - serializedVersion: 2\n")
+    children[5] = children[5].replace("m_Motion: {fileID: 0}", f"m_Motion: {hand}", 1)
+    edited = "  - serializedVersion: 2\n".join(children)
+    again = export(make_doc(LAYOUT), "unity", context=ExportContext(previous=edited)).text
+    motions = dict(zip(LAYOUT, _motions(again), strict=True))
+    assert motions["turn_l"]["guid"] == "0123456789abcdef0123456789abcdef"
+    assert sum(1 for m in motions.values() if m != {"fileID": 0}) == 1
+
+
+def test_unity_warns_where_its_inspector_would() -> None:
+    # Mixed units: the turn axis spans 270 deg/s, so 1 % of 1.35 x 270 = 3.6: walk (0, 1.4) and
+    # idle (0, 0) are "too close" for Unity although 1.4 m/s apart.
+    result = export(make_doc(LAYOUT), "unity")
+    (note,) = [n for n in result.notes if "too close to each other" in n]
+    assert "idle / walk" in note and "back" in note
+    narrow = {"a": (0.0, 0.0), "b": (90.0, 0.0), "c": (0.0, 4.5)}
+    assert not [n for n in export(make_doc(narrow), "unity").notes if "too close" in n]
 
 
 # --- Unreal -------------------------------------------------------------------------------------
