@@ -485,7 +485,7 @@ guid: {guid}
 NativeFormatImporter:
   externalObjects: {{}}
   mainObjectFileID: 7400000
-  userData: 
+  userData:
 """
 GUIDS = {"loco": "1f6f6d1b7a0e4f3c9d2b5a8c7e6f5d4c", "back": "0a1b2c3d4e5f60718293a4b5c6d7e8f9",
          "idle": "abcdefabcdefabcdefabcdefabcdef01"}  # fmt: skip
