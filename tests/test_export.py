@@ -819,3 +819,18 @@ def test_export_command_turns_write_failures_into_input_errors(
     assert main(["export", str(path), "--engine", "godot", "--out", f"{tmp_path / 'afile'}/"]) == 2
     assert "is a file, not a folder" in capsys.readouterr().err
     assert (tmp_path / "afile").read_text(encoding="utf-8") == "in the way"
+
+
+def test_export_command_reads_a_unity_project_and_checks_the_option(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    project = _unity_project(tmp_path / "Game")
+    assert main(["export", str(path), "--engine", "unity", "--unity-project", str(project)]) == 0
+    motions = _motions((tmp_path / "loco.controller").read_text(encoding="utf-8"))
+    assert motions[1] == {"fileID": -203655887218126122, "guid": GUIDS["loco"], "type": 3}
+    capsys.readouterr()
+    assert main(["export", str(path), "--engine", "godot", "--unity-project", str(project)]) == 2
+    assert "--unity-project is for --engine unity" in capsys.readouterr().err
+    assert main(["export", str(path), "--engine", "unity", "--unity-project", str(tmp_path / "nope")]) == 2
+    assert "is not a folder" in capsys.readouterr().err

@@ -44,6 +44,10 @@ def run(args: argparse.Namespace) -> int:
     path: Path = args.blendspace
     doc = read_document(path)
     project: Path | None = args.unity_project
+    if project is not None and args.engine != "unity":
+        raise InputError(
+            f"--unity-project is for --engine unity, not {args.engine}", hint="drop --unity-project"
+        )
     if project is not None and not project.is_dir():
         raise InputError(
             f"--unity-project {project} is not a folder",
