@@ -18,6 +18,7 @@ import pytest
 from conftest import shared_data
 from test_fixes import _build, _project
 
+from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
@@ -135,6 +136,10 @@ def test_blender_fbx_of_a_procedural_walk_measures_its_known_speed(
     assert features["turn_rate"] == pytest.approx(0.0, abs=1.0)
     source = read_clips(bvh)[0]
     assert clip.frame_count == source.frame_count and clip.fps == pytest.approx(source.fps, rel=1e-4)
+    # And through the command: an FBX is a clip like any other in a manifest.
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: walk.fbx\n", encoding="utf-8")
+    assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
 
 
 @pytest.mark.parametrize("take", ["131_01", "131_02"])
