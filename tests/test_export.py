@@ -23,7 +23,7 @@ from scipy.spatial import Delaunay
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.exporters import export
+from blendspace_pipeline.exporters import ExportContext, export
 from blendspace_pipeline.space.document import BlendSpaceDocument
 
 # --- documents ------------------------------------------------------------------------------
@@ -297,6 +297,91 @@ def test_godot_string_escapes_survive_the_parser() -> None:
     assert 'a "quoted" \\ name' in read_godot(export(doc, "godot").text).points
 
 
+def _replay_godot_bounds(properties: list[tuple[str, Any]]) -> tuple[list[float], list[float]]:
+    """Godot 4's loader calls each setter in file order on a new AnimationNodeBlendSpace2D.
+
+    animation_blend_space_2d.cpp: the constructor sets min_space (-1, -1) and max_space (1, 1);
+    set_min_space lowers a component >= max_space to max - 1, set_max_space raises a component
+    <= min_space to min + 1. Vector2 is float32.
+    """
+    low, high = [np.float32(-1.0)] * 2, [np.float32(1.0)] * 2
+    for key, value in properties:
+        if key == "min_space":
+            low = [np.float32(v) for v in value.args]
+            low = [lo if lo < hi else hi - np.float32(1) for lo, hi in zip(low, high, strict=True)]
+        elif key == "max_space":
+            high = [np.float32(v) for v in value.args]
+            high = [hi if hi > lo else lo + np.float32(1) for lo, hi in zip(low, high, strict=True)]
+    return [float(v) for v in low], [float(v) for v in high]
+
+
+RANGES = [(1.0, 6.0), (-6.0, -1.0), (-1.0, 1.0), (0.0, 6.0), (-3.0, 6.0), (-6.0, 0.0), (0.25, 0.75),
+          (-0.75, -0.25), (2.0, 2.5), (-1.0, 3.0), (-3.0, -0.5), (0.999, 1.5), (-1.5, -1.0)]  # fmt: skip
+
+
+@pytest.mark.parametrize("x_range", RANGES)
+@pytest.mark.parametrize("y_range", RANGES)
+def test_godot_loads_the_bounds_exactly_for_any_range(
+    x_range: tuple[float, float], y_range: tuple[float, float]
+) -> None:
+    axes: tuple[Axis, Axis] = (
+        ("lateral_speed", *x_range, 10, "m/s"),
+        ("forward_speed", *y_range, 10, "m/s"),
+    )
+    (x0, x1), (y0, y1) = x_range, y_range
+    doc = make_doc({"a": (x0, y0), "b": (x1, y0), "c": (x0, y1)}, axes=axes)
+    properties = read_godot(export(doc, "godot").text).resource.properties
+    low, high = _replay_godot_bounds(properties)
+    assert low == pytest.approx([x0, y0], abs=1e-6) and high == pytest.approx([x1, y1], abs=1e-6)
+
+
+def test_the_bounds_replay_catches_the_old_min_first_order() -> None:
+    # The test above can fail: a run-only axis written min first loads as 0..6 (the bug it guards).
+    old = [("min_space", Constructor("Vector2", [1, -1])), ("max_space", Constructor("Vector2", [6, 1]))]
+    assert _replay_godot_bounds(old) == ([0.0, -1.0], [6.0, 1.0])
+    old_max_first = [
+        ("max_space", Constructor("Vector2", [1, -1])),
+        ("min_space", Constructor("Vector2", [-1, -6])),
+    ]
+    assert _replay_godot_bounds(old_max_first) == ([-1.0, -6.0], [1.0, 0.0])
+
+
+def test_godot_header_has_a_stable_uid_and_a_reexport_keeps_godots() -> None:
+    doc = make_doc(LAYOUT)
+    first = read_godot(export(doc, "godot").text).header.attributes["uid"]
+    assert re.fullmatch(r"uid://[a-y0-8]{1,13}", first)
+    assert read_godot(export(doc, "godot").text).header.attributes["uid"] == first
+    # Godot rewrote the file with its own uid: the next export keeps it.
+    previous = export(doc, "godot").text.replace(first, "uid://cs1k22tdf04k4")
+    again = export(doc, "godot", context=ExportContext(previous=previous)).text
+    assert read_godot(again).header.attributes["uid"] == "uid://cs1k22tdf04k4"
+
+
+def test_godot_writes_fields_as_godot_4_does_in_the_tps_demo() -> None:
+    # godotengine/tps-demo player/player.tscn at 117eca0 (Godot 4, format=3) holds the strafe space:
+    #   [sub_resource type="AnimationNodeAnimation" id="19"] / animation = &"strafe_left" ...
+    #   blend_point_0/node = SubResource("19") / blend_point_0/pos = Vector2(1, 0) ...
+    # The same layout exported by us uses the same types, keys, order and literal syntax.
+    layout = {"strafe_left": (1.0, 0.0), "strafe_right": (-1.0, 0.0), "strafe_back": (0.0, -1.0),
+              "strafe_front": (0.0, 1.0), "Idlecombat": (0.0, 0.0)}  # fmt: skip
+    axes: tuple[Axis, Axis] = (
+        ("lateral_speed", -1.0, 1.0, 20, "m/s"),
+        ("forward_speed", -1.0, 1.0, 20, "m/s"),
+    )
+    text = export(make_doc(layout, axes=axes), "godot").text
+    assert text.startswith('[gd_resource type="AnimationNodeBlendSpace2D" load_steps=6 format=3 uid="uid://')
+    assert (
+        '[sub_resource type="AnimationNodeAnimation" id="AnimationNodeAnimation_0"]\nanimation = &"strafe_left"\n'
+        in text
+    )
+    expected = [
+        f'blend_point_{i}/node = SubResource("AnimationNodeAnimation_{i}")\nblend_point_{i}/pos = Vector2({x:g}, {y:g})'
+        for i, (x, y) in enumerate(layout.values())
+    ]
+    assert "\n".join(expected) in text
+    assert "min_space = Vector2(-1, -1)\nmax_space = Vector2(1, 1)\n" in text
+
+
 # --- Unity --------------------------------------------------------------------------------------
 
 UNITY_TAG = "tag:unity3d.com,2011:"
@@ -363,6 +448,99 @@ def test_unity_export_is_a_controller_with_a_freeform_cartesian_tree() -> None:
     assert any("turn_rate flipped" in note for note in result.notes)
 
 
+# A Unity project as Unity lays it out: an FBX whose ModelImporter .meta names its takes in
+# internalIDToNameTable (Unity 2019.3+), an older FBX meta with fileIDToRecycleName, and a native .anim.
+_FBX_META = """fileFormatVersion: 2
+guid: {guid}
+ModelImporter:
+  serializedVersion: 21300
+  internalIDToNameTable:
+  - first:
+      74: -203655887218126122
+    second: walk
+  - first:
+      74: 1827226128182048838
+    second: run
+  externalObjects: {{}}
+  materials:
+    materialImportMode: 2
+  animations:
+    legacyGenerateAnimations: 4
+    clipAnimations: []
+"""
+_OLD_FBX_META = """fileFormatVersion: 2
+guid: {guid}
+timeCreated: 1520000000
+ModelImporter:
+  serializedVersion: 22
+  fileIDToRecycleName:
+    100000: Hips
+    400000: Hips
+    7400000: Take 001
+  materials:
+    importMaterials: 1
+"""
+_ANIM_META = """fileFormatVersion: 2
+guid: {guid}
+NativeFormatImporter:
+  externalObjects: {{}}
+  mainObjectFileID: 7400000
+  userData:
+"""
+GUIDS = {"loco": "1f6f6d1b7a0e4f3c9d2b5a8c7e6f5d4c", "back": "0a1b2c3d4e5f60718293a4b5c6d7e8f9",
+         "idle": "abcdefabcdefabcdefabcdefabcdef01"}  # fmt: skip
+
+
+def _unity_project(root: Path) -> Path:
+    clips = root / "Assets" / "Animations"
+    clips.mkdir(parents=True)
+    (clips / "loco.fbx.meta").write_text(_FBX_META.format(guid=GUIDS["loco"]), encoding="utf-8")
+    (clips / "back.fbx.meta").write_text(_OLD_FBX_META.format(guid=GUIDS["back"]), encoding="utf-8")
+    (clips / "idle.anim.meta").write_text(_ANIM_META.format(guid=GUIDS["idle"]), encoding="utf-8")
+    return root
+
+
+def _motions(text: str) -> list[dict[str, Any]]:
+    tree = _of_class(read_unity(text), 206)[1]
+    return [dict(child["m_Motion"]) for child in tree["m_Childs"]]
+
+
+def test_unity_children_reference_the_clips_guids_from_the_project(tmp_path: Path) -> None:
+    context = ExportContext(unity_project=_unity_project(tmp_path / "Game"))
+    result = export(make_doc(LAYOUT), "unity", context=context)
+    motions = dict(zip(LAYOUT, _motions(result.text), strict=True))
+    assert motions["walk"] == {"fileID": -203655887218126122, "guid": GUIDS["loco"], "type": 3}
+    assert motions["run"] == {"fileID": 1827226128182048838, "guid": GUIDS["loco"], "type": 3}
+    assert motions["back"] == {"fileID": 7400000, "guid": GUIDS["back"], "type": 3}  # single take, by file
+    assert motions["idle"] == {"fileID": 7400000, "guid": GUIDS["idle"], "type": 2}  # a native .anim
+    assert motions["turn_l"] == {"fileID": 0}
+    (note,) = [n for n in result.notes if n.startswith("Motions not assigned")]
+    assert "4: turn_l" in note and ": walk," not in note
+
+
+def test_unity_reexport_keeps_hand_assignments(tmp_path: Path) -> None:
+    first = export(make_doc(LAYOUT), "unity").text
+    # The user assigned turn_l (child 4, at x = -90 in Unity's turning sign) by hand in Unity.
+    hand = "{fileID: 7400000, guid: 0123456789abcdef0123456789abcdef, type: 3}"
+    children = first.split("  - serializedVersion: 2\n")
+    children[5] = children[5].replace("m_Motion: {fileID: 0}", f"m_Motion: {hand}", 1)
+    edited = "  - serializedVersion: 2\n".join(children)
+    again = export(make_doc(LAYOUT), "unity", context=ExportContext(previous=edited)).text
+    motions = dict(zip(LAYOUT, _motions(again), strict=True))
+    assert motions["turn_l"]["guid"] == "0123456789abcdef0123456789abcdef"
+    assert sum(1 for m in motions.values() if m != {"fileID": 0}) == 1
+
+
+def test_unity_warns_where_its_inspector_would() -> None:
+    # Mixed units: the turn axis spans 270 deg/s, so 1 % of 1.35 x 270 = 3.6: walk (0, 1.4) and
+    # idle (0, 0) are "too close" for Unity although 1.4 m/s apart.
+    result = export(make_doc(LAYOUT), "unity")
+    (note,) = [n for n in result.notes if "too close to each other" in n]
+    assert "idle / walk" in note and "back" in note
+    narrow = {"a": (0.0, 0.0), "b": (90.0, 0.0), "c": (0.0, 4.5)}
+    assert not [n for n in export(make_doc(narrow), "unity").notes if "too close" in n]
+
+
 # --- Unreal -------------------------------------------------------------------------------------
 
 
@@ -396,7 +574,8 @@ def test_unreal_script_sets_axes_and_samples_in_unreal_units() -> None:
     assert "blend_space.set_editor_property('sample_data', samples)" in calls
     assert "parameter.set_editor_property('grid_num', divisions)" in calls
     assert "unreal.Vector(x, y, 0.0)" in calls
-    assert "resave" in result.text or "save the asset" in result.text
+    assert "unreal.EditorAssetLibrary.save_loaded_asset(blend_space, False)" in calls
+    assert "task.set_editor_property('automated', True)" in calls  # imports raise no dialog
 
 
 class _Struct:
@@ -410,14 +589,43 @@ class _Struct:
     def get_editor_property(self, name: str) -> Any:
         return self.props[name]
 
+    def modify(self) -> None:
+        self.props["modified"] = True
 
-def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any]]:
-    """The few `unreal` names the script uses, recording what it does to the asset."""
-    record: dict[str, Any] = {}
+
+SKELETON = "/Game/Characters/Mannequins/Meshes/SK_Mannequin"
+
+
+def _stand_in_unreal(
+    missing: set[str], command_line: str = "UnrealEditor.exe", other_skeleton: set[str] | None = None
+) -> tuple[types.ModuleType, dict[str, Any]]:
+    """The `unreal` names the script uses, recording what it does to the asset and the files it imports."""
+    record: dict[str, Any] = {"imported": [], "errors": []}
     unreal = types.ModuleType("unreal")
+    assets: dict[str, Any] = {}
 
     class BlendSpace(_Struct):
         pass
+
+    class AnimSequence(_Struct):
+        pass
+
+    class Vector(tuple[float, ...]):
+        x = property(lambda self: self[0])
+        y = property(lambda self: self[1])
+
+    def load_asset(path: str) -> Any:
+        if path in missing:
+            return None
+        if path not in assets:
+            if path == SKELETON:
+                assets[path] = _Struct(path)
+            else:
+                sequence = AnimSequence(path)
+                owner = "/Game/Other" if path in (other_skeleton or set()) else SKELETON
+                sequence.set_editor_property("skeleton", load_asset(owner) if owner == SKELETON else owner)
+                assets[path] = sequence
+        return assets[path]
 
     def create_asset(name: str, path: str, cls: type[_Struct], factory: _Struct) -> _Struct:
         asset = cls()
@@ -425,15 +633,29 @@ def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any
         record.update(created=(name, path, factory.props), asset=asset)
         return asset
 
+    def import_asset_tasks(tasks: list[_Struct]) -> None:
+        for task in tasks:
+            record["imported"].append(dict(task.props))
+            destination = f"{task.props['destination_path']}/{task.props['destination_name']}"
+            task.set_editor_property("imported_object_paths", [destination])
+
+    def fail(text: str) -> None:
+        record["errors"].append(text)
+
     unreal.BlendSpace = BlendSpace  # type: ignore[attr-defined]
+    unreal.AnimSequence = AnimSequence  # type: ignore[attr-defined]
     unreal.BlendParameter = unreal.BlendSample = unreal.BlendSpaceFactoryNew = _Struct  # type: ignore[attr-defined]
-    unreal.Vector = lambda *xyz: tuple(xyz)  # type: ignore[attr-defined]
-    unreal.load_asset = lambda path: None if path in missing else f"asset:{path}"  # type: ignore[attr-defined]
+    unreal.AssetImportTask = _Struct  # type: ignore[attr-defined]
+    unreal.Vector = lambda *xyz: Vector(xyz)  # type: ignore[attr-defined]
+    unreal.load_asset = load_asset  # type: ignore[attr-defined]
     unreal.log = lambda text: record.setdefault("log", text)  # type: ignore[attr-defined]
-    tools = types.SimpleNamespace(create_asset=create_asset)
+    unreal.log_error = fail  # type: ignore[attr-defined]
+    tools = types.SimpleNamespace(create_asset=create_asset, import_asset_tasks=import_asset_tasks)
     unreal.AssetToolsHelpers = types.SimpleNamespace(get_asset_tools=lambda: tools)  # type: ignore[attr-defined]
+    unreal.SystemLibrary = types.SimpleNamespace(get_command_line=lambda: command_line)  # type: ignore[attr-defined]
     unreal.EditorAssetLibrary = types.SimpleNamespace(  # type: ignore[attr-defined]
-        does_asset_exist=lambda path: False, save_loaded_asset=lambda asset: record.setdefault("saved", asset)
+        does_asset_exist=lambda path: False,
+        save_loaded_asset=lambda asset, only_if_dirty: record.setdefault("saved", asset) is asset,
     )
     editor = types.SimpleNamespace(open_editor_for_assets=lambda assets: record.setdefault("opened", assets))
     unreal.AssetEditorSubsystem = object  # type: ignore[attr-defined]
@@ -441,8 +663,10 @@ def _stand_in_unreal(missing: set[str]) -> tuple[types.ModuleType, dict[str, Any
     return unreal, record
 
 
-def _run_script(script: str, missing: set[str], monkeypatch: pytest.MonkeyPatch) -> dict[str, Any]:
-    unreal, record = _stand_in_unreal(missing)
+def _run_script(
+    script: str, missing: set[str], monkeypatch: pytest.MonkeyPatch, **options: Any
+) -> dict[str, Any]:
+    unreal, record = _stand_in_unreal(missing, **options)
     monkeypatch.setitem(sys.modules, "unreal", unreal)
     exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
     return record
@@ -458,18 +682,52 @@ def test_unreal_script_runs_and_builds_the_asset(monkeypatch: pytest.MonkeyPatch
     assert (y_axis.props["min"], y_axis.props["max"], y_axis.props["grid_num"]) == (-300.0, 600.0, 90)
     assert x_axis.props["snap_to_grid"] and y_axis.props["display_name"] == "speed (cm/s)"
     samples = asset.get_editor_property("sample_data")
-    assert [s.props["animation"] for s in samples] == [f"asset:/Game/Animations/{n}" for n in LAYOUT]
+    assert [s.props["animation"].args[0] for s in samples] == [f"/Game/Animations/{n}" for n in LAYOUT]
     values = [s.props["sample_value"] for s in samples]
     assert values == [pytest.approx((-x, y * 100.0, 0.0)) for x, y in LAYOUT.values()]
-    assert record["saved"] is asset and record["opened"] == [asset]
+    assert asset.props["modified"] and record["saved"] is asset and record["opened"] == [asset]
+
+
+def test_unreal_script_imports_generated_clips_and_runs_headless(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    doc = make_doc(LAYOUT)
+    raw = doc.model_dump()
+    raw["samples"][1]["generated"] = True
+    glb = tmp_path / "clips" / "walk.glb"
+    context = ExportContext(clip_files={"walk": [glb]})
+    script = export(BlendSpaceDocument.model_validate(raw), "unreal", context=context).text
+    assert "'walk'" not in script.split("ANIMATIONS = {")[1].split("}")[0]  # imported, not listed
+    record = _run_script(script, set(), monkeypatch, command_line="UnrealEditor-Cmd -run=pythonscript")
+    (task,) = record["imported"]
+    assert task["filename"] == str(glb) and task["automated"] and task["destination_name"] == "walk"
+    samples = record["asset"].get_editor_property("sample_data")
+    assert samples[1].props["animation"].args[0] == "/Game/Animations/Generated/walk"
+    assert record["saved"] is record["asset"] and "opened" not in record  # no editor window headless
 
 
 def test_unreal_script_stops_before_touching_anything_when_animations_are_missing(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     script = export(make_doc(LAYOUT), "unreal").text
-    with pytest.raises(RuntimeError, match="walk: /Game/Animations/walk"):
+    with pytest.raises(RuntimeError, match="walk: /Game/Animations/walk not found"):
         _run_script(script, {"/Game/Animations/walk"}, monkeypatch)
+
+
+def test_unreal_script_fails_loudly_on_a_missing_skeleton_or_a_foreign_clip(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    script = export(make_doc(LAYOUT), "unreal").text
+    with pytest.raises(RuntimeError, match="skeleton not found"):
+        _run_script(script, {SKELETON}, monkeypatch)
+    with pytest.raises(RuntimeError, match="run: /Game/Animations/run is not an animation of"):
+        _run_script(script, set(), monkeypatch, other_skeleton={"/Game/Animations/run"})
+    # Headless, a failure is a non-zero exit, and nothing was created or saved.
+    unreal, record = _stand_in_unreal({SKELETON}, command_line="UnrealEditor-Cmd -run=pythonscript")
+    monkeypatch.setitem(sys.modules, "unreal", unreal)
+    with pytest.raises(SystemExit) as stopped:
+        exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
+    assert stopped.value.code == 1 and "created" not in record and "saved" not in record
 
 
 def test_unreal_notes_duplicate_positions() -> None:
@@ -561,3 +819,18 @@ def test_export_command_turns_write_failures_into_input_errors(
     assert main(["export", str(path), "--engine", "godot", "--out", f"{tmp_path / 'afile'}/"]) == 2
     assert "is a file, not a folder" in capsys.readouterr().err
     assert (tmp_path / "afile").read_text(encoding="utf-8") == "in the way"
+
+
+def test_export_command_reads_a_unity_project_and_checks_the_option(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    project = _unity_project(tmp_path / "Game")
+    assert main(["export", str(path), "--engine", "unity", "--unity-project", str(project)]) == 0
+    motions = _motions((tmp_path / "loco.controller").read_text(encoding="utf-8"))
+    assert motions[1] == {"fileID": -203655887218126122, "guid": GUIDS["loco"], "type": 3}
+    capsys.readouterr()
+    assert main(["export", str(path), "--engine", "godot", "--unity-project", str(project)]) == 2
+    assert "--unity-project is for --engine unity" in capsys.readouterr().err
+    assert main(["export", str(path), "--engine", "unity", "--unity-project", str(tmp_path / "nope")]) == 2
+    assert "is not a folder" in capsys.readouterr().err

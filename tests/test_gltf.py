@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import shared_data
 from scipy.spatial.transform import Rotation
 
 from blendspace_pipeline.errors import ClipReadError
@@ -22,7 +23,6 @@ from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.gltf import read
 from blendspace_pipeline.writers.gltf import write_gltf_clip
-from tests.conftest import shared_data
 
 Y = np.array([0.0, 1.0, 0.0])
 X = np.array([1.0, 0.0, 0.0])

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import shared_data
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
@@ -15,7 +16,6 @@ from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.godot_tres import read
-from tests.conftest import shared_data
 
 Y = np.array([0.0, 1.0, 0.0])
 TPS = (

@@ -572,12 +572,12 @@ def test_glob_that_matches_nothing_points_at_its_entry(tmp_path: Path) -> None:
 
 
 def test_glob_of_unreadable_files_says_so(tmp_path: Path) -> None:
-    touch(tmp_path, "fbx/walk.fbx")
-    loaded = load_clips(tmp_path, "  - path: fbx/*\n")
+    touch(tmp_path, "maya/walk.ma")  # Maya scenes need Maya (FBX is readable with the fbx extra)
+    loaded = load_clips(tmp_path, "  - path: maya/*\n")
     with pytest.raises(ManifestError) as caught:
         resolve_clip_files(loaded)
-    assert caught.value.message == "glob 'fbx/*' matched no readable clip files"
-    assert caught.value.hint is not None and "walk.fbx" in caught.value.hint and ".bvh" in caught.value.hint
+    assert caught.value.message == "glob 'maya/*' matched no readable clip files"
+    assert caught.value.hint is not None and "walk.ma" in caught.value.hint and ".bvh" in caught.value.hint
 
 
 def test_missing_file_suggests_near_names(tmp_path: Path) -> None:

@@ -12,8 +12,12 @@ import sys
 from pathlib import Path
 
 from blendspace_pipeline.errors import EXIT_OK, InputError
-from blendspace_pipeline.exporters import ENGINES, Export, export, write_export
+from blendspace_pipeline.exporters import ENGINES, Export, ExportContext, adapter, export, write_export
+from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.layers_doc import read_document
+
+# A generated clip's files: the build writes them side by side under clips/ (output.clip_formats).
+_CLIP_SUFFIXES = (".usda", ".glb", ".bvh")
 
 HELP = "write the blend space for Godot (.tres), Unity (.controller) or Unreal (editor Python script)"
 
@@ -28,25 +32,67 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="output file, or a folder (an existing one, or any path ending in /) for the default name "
         "(default: N.tres / N.controller / N_unreal.py beside the JSON)",
     )
+    parser.add_argument(
+        "--unity-project",
+        type=Path,
+        metavar="DIR",
+        help="Unity project whose .meta files give the source clips' GUIDs (unity only)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     path: Path = args.blendspace
     doc = read_document(path)
+    project: Path | None = args.unity_project
+    if project is not None and args.engine != "unity":
+        raise InputError(
+            f"--unity-project is for --engine unity, not {args.engine}", hint="drop --unity-project"
+        )
+    if project is not None and not project.is_dir():
+        raise InputError(
+            f"--unity-project {project} is not a folder",
+            hint="pass the Unity project folder (the one with Assets/)",
+        )
+    suffix: str = adapter(args.engine).SUFFIX
+    target = output_path(args.out, path.parent / f"{doc.name}{suffix}")
+    replaced = target.exists()
+    context = ExportContext(
+        previous=_previous(target) if replaced else None,
+        target=target,
+        clip_files=clip_files(doc, path.parent),
+        unity_project=project,
+    )
     try:
-        result = export(doc, args.engine, source=path.name)
+        result = export(doc, args.engine, source=path.name, context=context)
     except InputError as error:
         if error.path is None:
             error.path = path
         raise
-    target = output_path(args.out, path.parent / f"{doc.name}{result.suffix}")
-    replaced = target.exists()
     try:
         write_export(result, target)
     except OSError as error:
         raise _cannot_write(target, error) from None
     _print_notes(result, target, replaced)
     return EXIT_OK
+
+
+def clip_files(doc: BlendSpaceDocument, folder: Path) -> dict[str, list[Path]]:
+    """Each generated sample's files beside the JSON (its source, and the other formats written)."""
+    files: dict[str, list[Path]] = {}
+    for sample in doc.samples:
+        if not sample.generated:
+            continue
+        source = (folder / sample.source).resolve()
+        files[sample.name] = [p for p in (source.with_suffix(s) for s in _CLIP_SUFFIXES) if p.is_file()]
+    return files
+
+
+def _previous(target: Path) -> str | None:
+    """The file being replaced, read to keep what the engine added to it (uids, assignments)."""
+    try:
+        return target.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return None
 
 
 def output_path(out: str | None, default: Path) -> Path:

@@ -86,6 +86,25 @@ class Export:
     text: str
     suffix: str
     notes: list[str]
+    # Extra files the engine needs beside the main one (Unity `.meta` files of generated clips):
+    # path -> text, written with the export and never over a file the user already has.
+    extra_files: dict[Path, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ExportContext:
+    """What an export may know beyond the document: the files around it.
+
+    ``previous`` is the text of the file the export replaces, so identifiers an engine added to it
+    (Godot's ``uid``, Unity's hand-assigned motions) survive a re-export. ``clip_files`` maps each
+    sample to the clip files the build wrote or read (absolute paths), ``target`` is where the
+    export goes and ``unity_project`` the Unity project whose `.meta` GUIDs to use.
+    """
+
+    previous: str | None = None
+    target: Path | None = None
+    clip_files: dict[str, list[Path]] = field(default_factory=dict)
+    unity_project: Path | None = None
 
 
 def rounded(value: float) -> float:
@@ -104,17 +123,26 @@ def adapter(engine: str) -> ModuleType:
     return importlib.import_module(f"blendspace_pipeline.exporters.{engine}")
 
 
-def export(doc: BlendSpaceDocument, engine: str, source: str = "") -> Export:
+def export(
+    doc: BlendSpaceDocument, engine: str, source: str = "", context: ExportContext | None = None
+) -> Export:
     """The engine file for ``doc`` and the notes on what the engine cannot express."""
     module = adapter(engine)
     space = to_engine(doc, module.CONVENTION, source)
-    text, notes = module.render(space)
+    text, notes, extra = module.render(space, context or ExportContext())
     common = common_notes(space, module.CONVENTION, module.LAYER_ADVICE)
-    return Export(engine=engine, text=text, suffix=module.SUFFIX, notes=[*common, *notes])
+    return Export(engine=engine, text=text, suffix=module.SUFFIX, notes=[*common, *notes], extra_files=extra)
 
 
 def write_export(result: Export, path: Path) -> None:
-    """Write atomically: a failed export never leaves half a file for an engine to import."""
+    """Write atomically: a failed export never leaves half a file for an engine to import.
+
+    Extra files (Unity `.meta`) are written first: a controller never points at a GUID whose
+    `.meta` is missing.
+    """
+    for extra, text in result.extra_files.items():
+        with atomic_path(extra) as temporary:
+            temporary.write_text(text, encoding="utf-8", newline="\n")
     with atomic_path(path) as temporary:
         temporary.write_text(result.text, encoding="utf-8", newline="\n")
 

@@ -3,13 +3,30 @@
 The tree is Freeform Cartesian (`m_BlendType: 3`, `BlendTreeType.FreeformCartesian2D`), the
 type meant for two unrelated quantities such as turn rate and speed. Unity weights its children
 by gradient bands, not by triangles, so weights between samples differ from ours; the positions
-are still exactly the snapped ones. Unity has no axis ranges or grid, and it references clips by
-GUID, which we cannot know: the children are written in sample order with no motion assigned.
+are still exactly the snapped ones. Unity has no axis ranges or grid.
+
+Unity references a clip by the GUID in its asset's `.meta` and the clip's local file ID. With
+``--unity-project`` the export reads them (`unity_clips`) and each child gets its real motion; a
+re-export keeps every motion the previous controller had at the same position (hand
+assignments survive). Generated clips get a `.meta` beside their GLB with a GUID derived from
+the clip's name, so the GUID is the same on every build and re-export.
 """
 
 from __future__ import annotations
 
-from blendspace_pipeline.exporters import Convention, EngineSpace, format_number
+import hashlib
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from blendspace_pipeline.exporters import (
+    Convention,
+    EngineSample,
+    EngineSpace,
+    ExportContext,
+    format_number,
+    rounded,
+)
 
 # Left-handed, Y up, metres, degrees: positive yaw (Transform.eulerAngles.y) turns right
 # (clockwise seen from above) and +x is the character's right, so handed features flip sign.
@@ -37,15 +54,137 @@ STATE_ID = 1102100000000000000
 BLEND_TREE_ID = 206100000000000000
 
 
-def render(space: EngineSpace) -> tuple[str, list[str]]:
+ANIMATION_CLIP_FILE_ID = 7400000  # an `.anim` asset's clip: class 74, the asset's main object
+_ASSET_REFERENCE = 2  # `type:` of a reference to a native asset (.anim)
+_IMPORTED_REFERENCE = 3  # `type:` of a reference to an object an importer made (FBX, GLB)
+# Unity's BlendTreeInspector.ValidatePositions: two children closer than 1 % of its blend rect's
+# height are "too close"; for a Freeform Cartesian tree that rect is 1.35 x the larger of the two
+# position spans (Get2DBlendRect), whatever the units of either axis.
+_UNITY_TOO_CLOSE = 0.01
+_UNITY_RECT_PADDING = 1.35
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A reference to an animation clip in a Unity project."""
+
+    file_id: int
+    guid: str
+    type: int
+
+    def text(self) -> str:
+        return f"{{fileID: {self.file_id}, guid: {self.guid}, type: {self.type}}}"
+
+
+def render(space: EngineSpace, context: ExportContext) -> tuple[str, list[str], dict[Path, str]]:
+    project = unity_clips(context.unity_project) if context.unity_project is not None else {}
+    kept = previous_motions(context.previous)
+    metas = _generated_metas(space, context)
+    motions: list[str] = []
+    unassigned: list[str] = []
+    for sample in space.samples:
+        motion = kept.get(_key(sample.position)) or _found(sample, project)
+        if motion is None:
+            unassigned.append(sample.name)
+        motions.append(motion or "{fileID: 0}")
     parts = [
         "%YAML 1.1\n%TAG !u! tag:unity3d.com,2011:\n",
         _controller(space),
         _state_machine(),
         _state(space),
-        _blend_tree(space),
+        _blend_tree(space, motions),
     ]
-    return "".join(parts), _notes(space)
+    extra = {path: text for path, (text, exists) in metas.items() if not exists}
+    return "".join(parts), _notes(space, unassigned, context), extra
+
+
+def unity_clips(project: Path) -> dict[str, Motion]:
+    """Clip name (and asset file stem) -> motion, from every `.meta` under the project's Assets.
+
+    An `.anim` is one clip, the asset's main object. A model (FBX, and anything another importer
+    lists the same way) names its clips in ``internalIDToNameTable`` (class 74 entries) or, in
+    metas older than Unity 2019.3, ``fileIDToRecycleName``; a model holding a single clip is also
+    found by its file name, since exporters often call the take "Take 001" or "mixamo.com".
+    """
+    root = project / "Assets" if (project / "Assets").is_dir() else project
+    found: dict[str, Motion] = {}
+    for meta in sorted(root.rglob("*.meta")):
+        text = meta.read_text(encoding="utf-8", errors="replace")
+        guid = re.search(r"^guid:\s*([0-9a-f]{32})\s*$", text, re.MULTILINE)
+        if guid is None:
+            continue
+        asset = meta.with_suffix("")
+        stem = asset.name.split(".")[0]
+        if asset.suffix.lower() == ".anim":
+            found.setdefault(stem, Motion(ANIMATION_CLIP_FILE_ID, guid.group(1), _ASSET_REFERENCE))
+            continue
+        clips = re.findall(r"-\s*first:\s*\n\s*74:\s*(-?\d+)\s*\n\s*second:\s*(.+?)\s*$", text, re.MULTILINE)
+        clips += [
+            (file_id, name) for file_id, name in re.findall(r"^\s+(74\d{5}):\s*(.+?)\s*$", text, re.MULTILINE)
+        ]
+        for file_id, name in clips:
+            found.setdefault(name.strip("'\""), Motion(int(file_id), guid.group(1), _IMPORTED_REFERENCE))
+        if len({file_id for file_id, _ in clips}) == 1:
+            found.setdefault(stem, Motion(int(clips[0][0]), guid.group(1), _IMPORTED_REFERENCE))
+    return found
+
+
+def previous_motions(text: str | None) -> dict[tuple[float, float], str]:
+    """Position -> assigned motion in the controller being replaced (unassigned children skipped)."""
+    kept: dict[tuple[float, float], str] = {}
+    pattern = r"m_Motion: (\{[^}]*\})\n(?:\s+\w+: [^\n]*\n)*?\s+m_Position: \{x: ([^,]+), y: ([^}]+)\}"
+    for motion, x, y in re.findall(pattern, text or ""):
+        if "guid:" in motion:
+            kept[_key((float(x), float(y)))] = motion
+    return kept
+
+
+def stable_guid(name: str) -> str:
+    """A Unity GUID (32 hex digits) that is the same on every build of the clip ``name``."""
+    return hashlib.md5(f"blendspace-pipeline/clip/{name}".encode()).hexdigest()
+
+
+def too_close_pairs(positions: list[tuple[str, tuple[float, float]]]) -> list[tuple[str, str]]:
+    """The pairs Unity's inspector flags "Two or more of the positions are too close to each other"."""
+    if not positions:
+        return []
+    xs = [p[0] for _, p in positions]
+    ys = [p[1] for _, p in positions]
+    height = _UNITY_RECT_PADDING * max(max(xs) - min(xs), max(ys) - min(ys))
+    if height == 0:
+        height = 2 * _UNITY_RECT_PADDING  # Get2DBlendRect's half-size 1 when every point coincides
+    pairs = []
+    for i, (name_i, a) in enumerate(positions):
+        for name_j, b in positions[:i]:
+            if ((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) / height**2 < _UNITY_TOO_CLOSE**2:
+                pairs.append((name_j, name_i))
+    return pairs
+
+
+def _key(position: tuple[float, float]) -> tuple[float, float]:
+    return (round(rounded(position[0]), 6) + 0.0, round(rounded(position[1]), 6) + 0.0)
+
+
+def _found(sample: EngineSample, project: dict[str, Motion]) -> str | None:
+    for name in (sample.name, Path(sample.source).stem):
+        if name in project:
+            return project[name].text()
+    return None
+
+
+def _generated_metas(space: EngineSpace, context: ExportContext) -> dict[Path, tuple[str, bool]]:
+    """`.meta` text for each generated clip's GLB, and whether one is already there (kept as is)."""
+    metas: dict[Path, tuple[str, bool]] = {}
+    for sample in space.samples:
+        if not sample.generated:
+            continue
+        for clip in context.clip_files.get(sample.name, []):
+            if clip.suffix.lower() != ".glb":
+                continue
+            meta = clip.with_name(clip.name + ".meta")
+            text = f"fileFormatVersion: 2\nguid: {stable_guid(sample.name)}\n"
+            metas[meta] = (text, meta.exists())
+    return metas
 
 
 def _header(class_id: int, file_id: int, type_name: str, hide_flags: int, version: int | None = None) -> str:
@@ -103,18 +242,21 @@ def _state(space: EngineSpace) -> str:
     )
 
 
-def _child(position: tuple[float, float], x_parameter: str) -> str:
+def _child(position: tuple[float, float], x_parameter: str, motion: str) -> str:
     return (
-        "  - serializedVersion: 2\n    m_Motion: {fileID: 0}\n    m_Threshold: 0\n"
+        f"  - serializedVersion: 2\n    m_Motion: {motion}\n    m_Threshold: 0\n"
         f"    m_Position: {{x: {format_number(position[0])}, y: {format_number(position[1])}}}\n"
         f"    m_TimeScale: 1\n    m_CycleOffset: 0\n    m_DirectBlendParameter: {_scalar(x_parameter)}\n"
         "    m_Mirror: 0\n"
     )
 
 
-def _blend_tree(space: EngineSpace) -> str:
+def _blend_tree(space: EngineSpace, motions: list[str]) -> str:
     x_axis, y_axis = space.axes
-    children = "".join(_child(sample.position, x_axis.feature) for sample in space.samples)
+    children = "".join(
+        _child(sample.position, x_axis.feature, motion)
+        for sample, motion in zip(space.samples, motions, strict=True)
+    )
     return (
         _header(206, BLEND_TREE_ID, "BlendTree", 1)
         + f"  m_Name: {_scalar(space.name)}\n  m_Childs:\n{children}"
@@ -134,12 +276,30 @@ def _scalar(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def _notes(space: EngineSpace) -> list[str]:
-    order = ", ".join(f"{index}: {sample.name}" for index, sample in enumerate(space.samples))
-    return [
+def _notes(space: EngineSpace, unassigned: list[str], context: ExportContext) -> list[str]:
+    notes = [
         "Unity weights a Freeform Cartesian tree by gradient bands, not by our triangles: positions match, "
         "weights between samples differ from `blendspace eval` (and the triangle rules do not apply)",
         "Unity has no axis ranges or grid: parameters are unbounded and nothing snaps; the positions are the "
         "snapped ones",
-        f"Unity references clips by GUID: assign each child's Motion in the Inspector, in order: {order}",
     ]
+    if unassigned:
+        order = ", ".join(
+            f"{index}: {sample.name}"
+            for index, sample in enumerate(space.samples)
+            if sample.name in unassigned
+        )
+        where = (
+            "found no clip of that name in the project's .meta files"
+            if context.unity_project is not None
+            else "pass --unity-project to read their GUIDs from the project's .meta files"
+        )
+        notes.append(f"Motions not assigned ({where}): assign them in the Inspector: {order}")
+    pairs = too_close_pairs([(s.name, s.position) for s in space.samples])
+    if pairs:
+        listing = ", ".join(f"{a} / {b}" for a, b in pairs)
+        notes.append(
+            'Unity\'s inspector will warn "Two or more of the positions are too close to each other" (it '
+            f"measures 1 % of the larger axis span, mixing units): {listing}"
+        )
+    return notes

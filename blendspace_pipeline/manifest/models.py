@@ -322,11 +322,24 @@ def _all_formats() -> list[OutputFormat]:
     return ["json", "usd", "html", "png"]
 
 
+ClipFormat = Literal["usd", "glb", "bvh"]
+
+
+def _all_clip_formats() -> list[ClipFormat]:
+    return ["usd", "glb", "bvh"]
+
+
 class OutputSettings(_Model):
     """Where and what a build writes."""
 
     dir: str = Field(default="build", description="Output folder, relative to the manifest.")
     formats: list[OutputFormat] = Field(default_factory=_all_formats, description="Outputs to write.")
+    clip_formats: list[ClipFormat] = Field(
+        default_factory=_all_clip_formats,
+        min_length=1,
+        description="Files written for each generated clip under clips/: usd (UsdSkel .usda), glb (for "
+        "Godot, Unreal and Unity's glTFast) and bvh (only when every source is BVH).",
+    )
 
 
 class Manifest(_Model):

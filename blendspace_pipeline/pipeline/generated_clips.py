@@ -1,9 +1,11 @@
-"""Writing the clips the fixes made: always UsdSkel, and BVH too when the sources are BVH.
+"""Writing the clips the fixes made: UsdSkel, GLB for engines, and BVH when the sources are BVH.
 
 A generated clip is written with the units and up axis its measurement established (BVH files do
-not say theirs), so it opens at the right size in any USD tool. When every source of the set is
-BVH, the clip is also written as BVH with the source's own hierarchy header and channel layout,
-so it drops into the same pipeline as the clips it came from.
+not say theirs), so it opens at the right size in any USD tool. The GLB (metres, +Y up, one
+animation named after the clip) is what Godot imports natively, Unreal through Interchange and
+Unity through glTFast. When every source of the set is BVH, the clip is also written as BVH with
+the source's own hierarchy header and channel layout, so it drops into the same pipeline as the
+clips it came from. The manifest's ``output.clip_formats`` narrows the list.
 """
 
 from __future__ import annotations
@@ -12,7 +14,34 @@ from pathlib import Path
 
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
 from blendspace_pipeline.space.model import BlendSpace
+from blendspace_pipeline.writers.gltf import write_gltf_clip
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+# The suffix of each clip format, in the order a generated sample's `source` prefers them.
+CLIP_SUFFIXES = {"usd": ".usda", "glb": ".glb", "bvh": ".bvh"}
+
+
+def clip_formats(space: BlendSpace) -> list[str]:
+    """The formats ``space``'s manifest asks for (`output.clip_formats`), in preference order."""
+    wanted = set(space.manifest.model.output.clip_formats)
+    return [name for name in CLIP_SUFFIXES if name in wanted]
+
+
+def source_suffix(space: BlendSpace) -> str:
+    """The file a generated sample's ``source`` names: the first written of USD, GLB, BVH.
+
+    BVH is written only for BVH sources; a manifest asking for BVH alone on other sources still
+    gets the USD, so a generated sample always has a file.
+    """
+    formats = clip_formats(space)
+    if formats == ["bvh"] and not _all_bvh(space):
+        return CLIP_SUFFIXES["usd"]
+    return CLIP_SUFFIXES[formats[0]]
+
+
+def _all_bvh(space: BlendSpace) -> bool:
+    sources = [s.clip.source for s in space.samples if not s.generated]
+    return bool(sources) and all(p.suffix.lower() == ".bvh" for p in sources)
 
 
 def bvh_template(space: BlendSpace, generated: GeneratedClip) -> Path | None:
@@ -34,12 +63,18 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
     measured = generated.measured
     units = measured.measurement.meters_per_unit if measured else clip.meters_per_unit
     up = measured.measurement.up_axis if measured else clip.up_axis
-    written = [folder / f"{clip.name}.usda"]
-    write_usd_clip(clip, written[0], meters_per_unit=units, up_axis=up)
-    template = bvh_template(space, generated)
+    formats = clip_formats(space)
+    written: list[Path] = []
+    if "usd" in formats or source_suffix(space) == CLIP_SUFFIXES["usd"]:
+        written.append(folder / f"{clip.name}.usda")
+        write_usd_clip(clip, written[-1], meters_per_unit=units, up_axis=up)
+    if "glb" in formats:
+        written.append(folder / f"{clip.name}.glb")
+        write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up)
+    template = bvh_template(space, generated) if "bvh" in formats else None
     if template is not None:
         from blendspace_pipeline.writers.bvh import write_bvh_clip
 
         written.append(folder / f"{clip.name}.bvh")
-        write_bvh_clip(clip, written[1], template=template)
+        write_bvh_clip(clip, written[-1], template=template)
     return written

@@ -17,7 +17,7 @@ from pathlib import Path
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
-from blendspace_pipeline.pipeline.generated_clips import write_generated_clip
+from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.space.document import BlendSpaceDocument
@@ -129,7 +129,7 @@ def _write_outputs(
     for sub, _, folder in made:
         for sample in sub.samples:
             if sample.generated:
-                sample.clip.source = out_dir / folder / f"{sample.name}.usda"
+                sample.clip.source = out_dir / folder / f"{sample.name}{source_suffix(sub)}"
     document = to_document(space, out_dir)
     staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
     try:

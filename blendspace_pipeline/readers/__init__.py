@@ -24,10 +24,10 @@ _ADAPTERS = {
     ".gltf": "gltf",
     ".glb": "gltf",
     ".tres": "godot_tres",
+    ".fbx": "fbx",  # needs the optional pufbx package; the adapter says how to install it
 }
 
 _NOT_READABLE = {
-    ".fbx": "FBX cannot be read without Autodesk's proprietary FBX SDK",
     ".ma": "Maya scenes need Maya to evaluate",
     ".mb": "Maya scenes need Maya to evaluate",
     ".blend": "Blender files need Blender to evaluate",

@@ -1,0 +1,236 @@
+"""Blender as a real DCC (`bpy` from PyPI): it writes FBX from the shared BVH and glTF clips and our
+FBX reader measures them as it measures the sources; it imports every generated GLB and USD clip
+and its joint world positions match ours within 1 mm on every frame.
+
+Blender runs in a subprocess per test (it owns global state and is ~370 MB of native code); the
+tests skip when `bpy` (or, for FBX, `pufbx`) cannot be imported."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import shared_data
+from test_fixes import _build, _project
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+MM = 1e-3
+
+
+@cache
+def _bpy_problem() -> str | None:
+    """Why Blender cannot run here, or None."""
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", "import bpy; print(bpy.app.version_string)"],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+    except (OSError, subprocess.TimeoutExpired) as error:
+        return f"bpy did not start: {error}"
+    return None if done.returncode == 0 else f"bpy cannot be imported: {done.stderr.strip()[-300:]}"
+
+
+@pytest.fixture
+def blender() -> None:
+    problem = _bpy_problem()
+    if problem:
+        pytest.skip(problem)
+
+
+@pytest.fixture
+def fbx() -> None:
+    pytest.importorskip("pufbx", reason="the FBX extra (pufbx) is not installed")
+
+
+# Runs inside Blender: argv[1] is a JSON list of jobs.
+_SCRIPT = r"""
+import json, sys
+import bpy
+
+def reset(fps):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.context.scene.render.fps = int(round(fps))
+    bpy.context.scene.render.fps_base = round(fps) / fps
+
+for job in json.loads(sys.argv[1]):
+    reset(job.get("fps", 24))
+    source = job["source"]
+    if source.endswith(".bvh"):
+        bpy.ops.import_anim.bvh(filepath=source, global_scale=job.get("scale", 1.0),
+                                update_scene_fps=True, update_scene_duration=True)
+    elif source.endswith((".glb", ".gltf")):
+        bpy.ops.import_scene.gltf(filepath=source)
+    else:
+        bpy.ops.wm.usd_import(filepath=source)
+    if job["kind"] == "fbx":
+        # The take spans the clip, not the scene's default 250 frames (which would hold the last pose).
+        actions = [o.animation_data.action for o in bpy.data.objects if o.animation_data and o.animation_data.action]
+        if actions:
+            first, last = actions[0].frame_range
+            bpy.context.scene.frame_start, bpy.context.scene.frame_end = int(round(first)), int(round(last))
+        # Every action as its own take, sampled on every frame (no curve simplification).
+        bpy.ops.export_scene.fbx(filepath=job["out"], bake_anim=True, bake_anim_simplify_factor=0.0,
+                                 add_leaf_bones=False, bake_anim_use_all_actions=job.get("all_actions", False),
+                                 bake_anim_use_nla_strips=False)
+        continue
+    # kind == "positions": every bone's head in Blender's world, on every frame of the action.
+    (armature,) = [o for o in bpy.data.objects if o.type == "ARMATURE"]
+    first, last = (int(round(f)) for f in armature.animation_data.action.frame_range)
+    names = [bone.name for bone in armature.pose.bones]
+    frames = []
+    for frame in range(first, last + 1):
+        bpy.context.scene.frame_set(frame)
+        frames.append([list(armature.matrix_world @ bone.head) for bone in armature.pose.bones])
+    with open(job["out"], "w") as handle:
+        json.dump({"names": names, "positions": frames, "first": first}, handle)
+"""
+
+
+def _run_blender(jobs: list[dict[str, object]]) -> None:
+    done = subprocess.run(
+        [sys.executable, "-c", _SCRIPT, json.dumps(jobs)], capture_output=True, text=True, timeout=900
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+
+
+def _world_m(clip: Clip) -> np.ndarray:
+    """Joint world positions in metres, in the clip's own up axis."""
+    return np.asarray(forward_kinematics(clip)[1]) * (clip.meters_per_unit or 1.0)
+
+
+def _common(a: Clip, b: Clip) -> tuple[list[int], list[int]]:
+    names = [n for n in a.skeleton.names if n in b.skeleton.names]
+    return [a.skeleton.index(n) for n in names], [b.skeleton.index(n) for n in names]
+
+
+# --- FBX written by Blender, read by us --------------------------------------------------------
+
+
+def test_blender_fbx_of_a_procedural_walk_measures_its_known_speed(
+    tmp_path: Path, blender: None, fbx: None
+) -> None:
+    # Truth by construction: 1.4 m/s forward, no turn, written as BVH in metres.
+    spec = GaitSpec("walk", speed=1.4, duration=2.0)
+    bvh = tmp_path / "walk.bvh"
+    write_bvh_clip(generate(spec), bvh)
+    out = tmp_path / "walk.fbx"
+    _run_blender([{"kind": "fbx", "source": str(bvh), "out": str(out)}])
+    (clip,) = read_clips(out)
+    assert clip.meters_per_unit is not None and clip.up_axis == "y"
+    features = measure(clip, RigSettings()).features
+    assert features["speed"] == pytest.approx(1.4, abs=0.02)
+    assert features["turn_rate"] == pytest.approx(0.0, abs=1.0)
+    source = read_clips(bvh)[0]
+    assert clip.frame_count == source.frame_count and clip.fps == pytest.approx(source.fps, rel=1e-4)
+    # And through the command: an FBX is a clip like any other in a manifest.
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: walk.fbx\n", encoding="utf-8")
+    assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
+
+
+@pytest.mark.parametrize("take", ["131_01", "131_02"])
+def test_blender_fbx_of_shared_bvh_measures_like_the_bvh(
+    tmp_path: Path, blender: None, fbx: None, take: str
+) -> None:
+    bvh = shared_data("cmu", f"{take}.bvh")
+    source = read_clips(bvh)[0]
+    ours = measure(source, RigSettings())
+    # BVH has no unit: Blender is told ours, so its metres are the metres we measured in.
+    out = tmp_path / f"{take}.fbx"
+    _run_blender([{"kind": "fbx", "source": str(bvh), "out": str(out), "scale": ours.meters_per_unit}])
+    (clip,) = read_clips(out)
+    theirs = measure(clip, RigSettings())
+    for feature in ("speed", "forward_speed", "lateral_speed", "turn_rate", "direction", "duration"):
+        assert theirs.features[feature] == pytest.approx(ours.features[feature], abs=0.01), feature
+    a, b = _common(source, clip)
+    difference = np.abs(_world_m(source)[:, a] * ours.meters_per_unit / (source.meters_per_unit or 1.0)
+                        - _world_m(clip)[:, b])  # fmt: skip
+    assert difference.max() < MM
+
+
+def test_blender_fbx_of_the_shared_gltf_keeps_one_clip_per_take(
+    tmp_path: Path, blender: None, fbx: None
+) -> None:
+    glb = shared_data("khronos-fox", "Fox.glb")
+    sources = {c.name.split("/")[-1]: c for c in read_clips(glb)}
+    out = tmp_path / "fox.fbx"
+    _run_blender([{"kind": "fbx", "source": str(glb), "out": str(out), "fps": 24, "all_actions": True}])
+    clips = {c.name.split("/")[-1]: c for c in read_clips(out)}
+    assert {name.split("|")[-1] for name in clips} >= set(sources)  # Survey, Walk, Run
+    for name, source in sources.items():
+        (clip,) = [c for key, c in clips.items() if key.split("|")[-1] == name]
+        assert clip.name == f"fox/{name}"
+        a, b = _common(source, clip)
+        assert len(a) >= 20  # the fox's bones, by name
+        assert source.frame_count == clip.frame_count
+        # Where the take has keys off the 24 fps grid (Run: 25 keys over 1.158 s), Blender
+        # interpolates quaternion components linearly between them and we slerp: frames are
+        # compared where a glTF key falls on them, which is every frame of Survey and Walk.
+        frames = _keyed_frames(glb, name, source.fps, source.frame_count)
+        assert len(frames) >= 0.5 * source.frame_count
+        ours, theirs = _world_m(source)[frames][:, a], _world_m(clip)[frames][:, b]
+        assert np.abs(ours - theirs).max() < MM, name
+
+
+def _keyed_frames(glb: Path, animation: str, fps: float, count: int) -> list[int]:
+    """Frames of ``animation`` on which every one of its channels has a key."""
+    import pygltflib
+
+    document = pygltflib.GLTF2().load(str(glb))
+    (found,) = [a for a in document.animations if a.name == animation]
+    keyed = set(range(count))
+    for input_index in {sampler.input for sampler in found.samplers}:
+        accessor = document.accessors[input_index]
+        view = document.bufferViews[accessor.bufferView]
+        blob = document.binary_blob()
+        start = (view.byteOffset or 0) + (accessor.byteOffset or 0)
+        times = np.frombuffer(blob, dtype="<f4", count=accessor.count, offset=start)
+        keyed &= {i for i in range(count) if np.min(np.abs(times - i / fps)) < 1e-4}
+    return sorted(keyed)
+
+
+# --- generated clips opened in Blender ----------------------------------------------------------
+
+
+def test_blender_opens_every_generated_clip_where_we_put_the_joints(tmp_path: Path, blender: None) -> None:
+    doc = _build(_project(tmp_path), tmp_path / "out")
+    made = [s["name"] for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    assert made
+    files = [tmp_path / "out" / "clips" / f"{name}{suffix}" for name in made for suffix in (".glb", ".usda")]
+    jobs: list[dict[str, object]] = [
+        {
+            "kind": "positions",
+            "source": str(path),
+            "out": str(path.with_suffix(path.suffix + ".json")),
+            "fps": 30,
+        }
+        for path in files
+    ]
+    _run_blender(jobs)
+    for path in files:
+        clip = read_clips(path)[0]
+        assert clip.fps == 30.0
+        seen = json.loads(path.with_suffix(path.suffix + ".json").read_text())
+        positions = np.asarray(seen["positions"])  # (F, J, 3) Blender world: Z up, metres
+        as_y_up = np.stack([positions[..., 0], positions[..., 2], -positions[..., 1]], axis=-1)
+        ours = _world_m(clip)
+        if clip.up_axis == "z":
+            ours = np.stack([ours[..., 0], ours[..., 2], -ours[..., 1]], axis=-1)
+        index = [clip.skeleton.index(name) for name in seen["names"]]
+        assert len(index) == clip.skeleton.joint_count, path.name
+        assert positions.shape[0] == clip.frame_count, path.name  # every frame
+        assert np.abs(as_y_up - ours[:, index]).max() < MM, path.name
