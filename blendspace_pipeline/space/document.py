@@ -47,6 +47,11 @@ class ClipInfoDoc(_Strict):
         "turn on the spot); `eval` syncs playback rates by it. Absent in documents written before it "
         "existed, where `eval` falls back to the clip's duration.",
     )
+    plant_phases: dict[str, float] | None = Field(
+        default=None,
+        description="Stride phase (0..1, 0 where the left foot passes the right one going forward) at "
+        "which each foot plants (`left`, `right`); null without a gait or without foot contacts.",
+    )
 
 
 class SampleDoc(_Strict):
@@ -66,6 +71,11 @@ class SampleDoc(_Strict):
         default=None, description="Position an author gave by hand in the manifest (`position:`), if any."
     )
     clip: ClipInfoDoc | None = Field(default=None, description="Facts about the measured clip.")
+    contacts: dict[str, list[list[float]]] | None = Field(
+        default=None,
+        description="Foot contacts per foot (`left`, `right`): [start, end] seconds of the used range "
+        "during which the foot stands on the ground; absent for rigs without recognisable feet.",
+    )
 
 
 class LocationDoc(_Strict):
