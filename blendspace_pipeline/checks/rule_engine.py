@@ -280,6 +280,11 @@ def sample_view(
         units_guessed=m.units_guessed,
         joint_names=tuple(m.joint_names),
         notes=tuple(m.notes),
+        gait_period=m.gait_period,
+        contacts={foot: tuple((a, b) for a, b in spans) for foot, spans in m.contacts.items()}
+        if m.contacts is not None
+        else None,
+        plant_phases=m.plant_phases,
     )
 
 
