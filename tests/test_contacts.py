@@ -13,15 +13,9 @@ from pxr import Usd
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.clip import forward_kinematics
+from blendspace_pipeline.motion.clip_ops.feet import clip_contacts, contact_joints
 from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
-from blendspace_pipeline.motion.contacts import (
-    FootContacts,
-    clip_contacts,
-    contact_joints,
-    detect_contacts,
-    plant_phases,
-    sync_markers,
-)
+from blendspace_pipeline.motion.contacts import FootContacts, detect_contacts, plant_phases, sync_markers
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate, generate_planted, planted_truth

@@ -75,8 +75,9 @@ def test_planted_clips_with_other_duty_factors_mismatch_their_plants() -> None:
     ]
     space = space_from_positions({"walk_long": (0.0, 1.4), "walk_short": (40.0, 1.4), "idle": (0.0, 0.0)})
     from blendspace_pipeline.motion.clip import forward_kinematics
+    from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
     from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
-    from blendspace_pipeline.motion.contacts import clip_contacts, plant_phases
+    from blendspace_pipeline.motion.contacts import plant_phases
     from blendspace_pipeline.motion.detect import RigSettings
 
     gaits = {}

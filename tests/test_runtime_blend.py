@@ -13,7 +13,7 @@ from conftest import SHARED_DATA, shared_data
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.blend_model import SYNC_MODES, play, playback_rates, prepare
 from blendspace_pipeline.motion.clip import forward_kinematics
-from blendspace_pipeline.motion.contacts import clip_contacts
+from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.procedural import SAMPLE_SET, GaitSpec, generate_planted
 from blendspace_pipeline.report.trajectory_error import document_trajectory_error

@@ -29,6 +29,7 @@ import numpy as np
 
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.blend import resample_linear, resample_quaternions, weighted_slerp
+from blendspace_pipeline.motion.clip_ops.feet import contact_joints
 from blendspace_pipeline.motion.clip_ops.root_motion import (
     RootMotion,
     compose,
@@ -36,7 +37,7 @@ from blendspace_pipeline.motion.clip_ops.root_motion import (
     integrate,
     step_velocities,
 )
-from blendspace_pipeline.motion.contacts import FEET, FootContacts, contact_joints
+from blendspace_pipeline.motion.contacts import FEET, FootContacts
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.quaternions import FloatArray
 

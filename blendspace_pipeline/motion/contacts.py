@@ -22,13 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
-from blendspace_pipeline.motion.clip import Clip
-from blendspace_pipeline.motion.clip_ops.phase import foot_joints
-from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 FEET = ("left", "right")
+BoolArray = NDArray[np.bool_]
 MARKER_NAMES = {"left": "LeftFootDown", "right": "RightFootDown"}
 # Floor of a foot: this percentile of its height (a take's lowest few frames may be glitches).
 _FLOOR_PERCENTILE = 5.0
@@ -69,7 +68,7 @@ class FootContacts:
             duration,
         )
 
-    def mask(self, foot: str, times: FloatArray) -> FloatArray:
+    def mask(self, foot: str, times: FloatArray) -> BoolArray:
         """True where ``foot`` is planted at ``times`` (seconds)."""
         inside = np.zeros(len(times), dtype=bool)
         for start, end in self.of(foot):
@@ -114,7 +113,7 @@ def _ground_speed(track: FloatArray, fps: float, reach: int) -> FloatArray:
     return speed
 
 
-def _intervals(mask: FloatArray, fps: float) -> list[tuple[float, float]]:
+def _intervals(mask: BoolArray, fps: float) -> list[tuple[float, float]]:
     """[start, end] seconds of runs of True, short gaps closed and short runs dropped."""
     frames = len(mask)
     runs: list[list[int]] = []
@@ -176,7 +175,7 @@ def detect_contacts(
     return FootContacts(found[0], found[1], duration)
 
 
-def _hysteresis(low: FloatArray, near: float, speed: FloatArray, limit: float) -> FloatArray:
+def _hysteresis(low: FloatArray, near: float, speed: FloatArray, limit: float) -> BoolArray:
     """Planted: enters when both height and speed are under their thresholds, leaves once either
     exceeds its threshold times `_RELEASE`."""
     inside = np.zeros(len(low), dtype=bool)
@@ -213,31 +212,31 @@ def phase_distance(a: float, b: float) -> float:
     return min(d, 1.0 - d)
 
 
-def contact_joints(clip: Clip, settings: RigSettings) -> tuple[list[int], list[int]] | None:
-    """Per foot (left, right): the ankle `clip_ops.phase` syncs on, then the joint below it (the
-    toe) when there is one; None for rigs without recognisable legs or without a hierarchy."""
-    if not clip.skeleton.has_hierarchy:
-        return None
-    feet = foot_joints(clip, settings)
-    if feet is None:
-        return None
-    found: list[list[int]] = []
-    for foot in feet:
-        below = clip.skeleton.children(foot)
-        found.append([foot, below[0]] if below else [foot])
-    return found[0], found[1]
-
-
-def clip_contacts(
-    clip: Clip,
-    settings: RigSettings,
+def foot_sliding(
     world_pos: FloatArray,
+    joints: tuple[list[int], list[int]],
+    contacts: FootContacts,
     *,
+    fps: float,
     meters_per_unit: float,
     up_axis: str,
-) -> FootContacts | None:
-    """`detect_contacts` on ``clip`` (its forward kinematics ``world_pos``), None without feet."""
-    joints = contact_joints(clip, settings)
-    if joints is None or clip.frame_count < 4:
+) -> float | None:
+    """Mean ground speed (m/s) of the feet while planted: per foot, the slower of its joints
+    (a rolling foot pivots on the heel, then the toe); None when no foot is ever planted."""
+    up = 2 if up_axis == "z" else 1
+    ground = [axis for axis in range(3) if axis != up]
+    times = np.arange(len(world_pos)) / fps
+    speeds = []
+    for foot, chain in zip(FEET, joints, strict=True):
+        down = contacts.mask(foot, times)
+        steady = down[1:] & down[:-1]
+        if not steady.any():
+            continue
+        per_joint = [
+            np.linalg.norm(np.diff(world_pos[:, j][:, ground], axis=0), axis=1) * fps * meters_per_unit
+            for j in chain
+        ]
+        speeds.append(np.minimum.reduce(per_joint)[steady])
+    if not speeds:
         return None
-    return detect_contacts(world_pos, joints, fps=clip.fps, meters_per_unit=meters_per_unit, up_axis=up_axis)
+    return float(np.concatenate(speeds).mean())

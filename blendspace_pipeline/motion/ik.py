@@ -10,11 +10,13 @@ target out of reach is approached as far as the straightened leg allows.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.quaternions import FloatArray
 
+BoolArray = NDArray[np.bool_]
 # Never straighten the leg completely: at full extension the bend plane is undefined.
 _MAX_EXTENSION = 0.999
 
@@ -34,7 +36,7 @@ def solve_leg(
     clip: Clip,
     chain: tuple[int, int, int],
     targets: FloatArray,
-    active: FloatArray,
+    active: BoolArray,
     pole: FloatArray | None = None,
 ) -> Clip:
     """``clip`` with the leg ``chain`` (hip, knee, ankle joints) reaching ``targets`` (F, 3 world,
@@ -98,7 +100,7 @@ def solve_leg(
     )
 
 
-def set_world_rotation(clip: Clip, joint: int, rotations: FloatArray, active: FloatArray) -> Clip:
+def set_world_rotation(clip: Clip, joint: int, rotations: FloatArray, active: BoolArray) -> Clip:
     """``clip`` with ``joint`` turned to world ``rotations`` (F, 4) on the ``active`` frames."""
     world_rot, _ = forward_kinematics(clip)
     parent = clip.skeleton.parents[joint]

@@ -16,8 +16,9 @@ import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
 from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
-from blendspace_pipeline.motion.contacts import clip_contacts, plant_phases
+from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
     RigSettings,
     detect_tpose_frame,
