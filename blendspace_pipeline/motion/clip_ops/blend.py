@@ -28,8 +28,14 @@ from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts, contact_joints
 from blendspace_pipeline.motion.clip_ops.phase import GaitCycle, detect_cycle, frames_at_phases
 from blendspace_pipeline.motion.clip_ops.root_motion import compose, decompose, integrate, step_velocities
-from blendspace_pipeline.motion.contacts import FEET, BoolArray
-from blendspace_pipeline.motion.detect import RigSettings, detect_tpose_frame, resolve_root, resolve_units
+from blendspace_pipeline.motion.contacts import FEET, BoolArray, plant_phases
+from blendspace_pipeline.motion.detect import (
+    RigSettings,
+    detect_tpose_frame,
+    resolve_root,
+    resolve_units,
+    resolve_up,
+)
 from blendspace_pipeline.motion.ik import solve_leg
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -140,17 +146,19 @@ def align(clips: Sequence[Clip], weights: Sequence[float], fps: float, settings:
     frames = max(2, round(strides * period * fps) + 1)
     lead = max(walking, key=lambda wc: wc[0])[1]  # the result starts where its main clip starts
     start = float(lead.phase[0])
+    offsets = plant_offsets(clips, cycles, cycles.index(lead), settings)
     along = np.linspace(0.0, 1.0, frames)
     mid = (np.arange(frames - 1) + 0.5) / (frames - 1)
     poses, steps, wraps = [], [], []
-    for clip, cycle in zip(clips, cycles, strict=True):
+    for index, (clip, cycle) in enumerate(zip(clips, cycles, strict=True)):
         if cycle is None:
             poses.append(along * (clip.frame_count - 1))
             steps.append(mid * (clip.frame_count - 1) - 0.5)
             wraps.append(False)
         else:
-            poses.append(frames_at_phases(cycle, start + strides * along))
-            steps.append(frames_at_phases(cycle, start + strides * mid) - 0.5)
+            shift = offsets[index] if offsets is not None else 0.0
+            poses.append(frames_at_phases(cycle, start + strides * along - shift))
+            steps.append(frames_at_phases(cycle, start + strides * mid - shift) - 0.5)
             wraps.append(cycle.open_loop)
     periods = ", ".join(f"{c.period:.3g} s" for c in cycles if c is not None)
     return Timing(
@@ -161,6 +169,42 @@ def align(clips: Sequence[Clip], weights: Sequence[float], fps: float, settings:
         f"aligned by gait phase (strides of {periods} -> {strides} x {period:.3g} s)",
         loops=True,
     )
+
+
+# Largest phase shift (strides) contact alignment may apply: more means the contacts disagree
+# so much (a crossed or odd gait) that the swing alignment is the safer choice.
+_MAX_PLANT_SHIFT = 0.2
+
+
+def plant_offsets(
+    clips: Sequence[Clip], cycles: Sequence[GaitCycle | None], lead: int, settings: RigSettings
+) -> list[float] | None:
+    """Per clip, the stride phase by which to delay it so its feet land when the lead clip's do
+    (engines' marker sync: foot-down events, not only the legs' swing, line up). 0 for clips
+    without a gait or contacts; None when the lead has no plant phases."""
+    phases: list[dict[str, float] | None] = []
+    for clip, cycle in zip(clips, cycles, strict=True):
+        if cycle is None:
+            phases.append(None)
+            continue
+        positions = forward_kinematics(clip)[1]
+        up, _ = resolve_up(clip, positions, settings)
+        unit = _unit_of(clip, settings, up)
+        contacts = clip_contacts(clip, settings, positions, meters_per_unit=unit, up_axis=up)
+        phases.append(plant_phases(contacts, cycle.phase, clip.fps) if contacts is not None else None)
+    reference = phases[lead]
+    if reference is None:
+        return None
+    offsets = []
+    for own in phases:
+        if own is None:
+            offsets.append(0.0)
+            continue
+        # Circular mean of the per-foot differences, in (-0.5, 0.5].
+        angles = [2.0 * np.pi * (reference[f] - own[f]) for f in FEET]
+        shift = float(np.arctan2(np.mean(np.sin(angles)), np.mean(np.cos(angles)))) / (2.0 * np.pi)
+        offsets.append(shift if abs(shift) <= _MAX_PLANT_SHIFT else 0.0)
+    return offsets
 
 
 def blend_clips(
