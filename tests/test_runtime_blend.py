@@ -172,3 +172,29 @@ def test_cmu_build_measures_foot_skate_of_real_mocap(tmp_path: Path) -> None:
     skate = [v for row in quality["foot_skate"] for v in row if v is not None]
     assert skate and all(0.0 <= v < 3.0 for v in skate)  # mocap feet slide a little, never metres a second
     assert quality["summary"]["foot_skate_max"] == pytest.approx(max(skate), rel=1e-3)
+
+
+def test_eval_says_what_its_rates_deliver(
+    planted_build: tuple[BlendSpaceDocument, dict[str, object]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The issue's case: at (44.5, 4.0) run_fwd (0.8 s stride) blends with run_turn_left (0.5 s);
+    eval's stride-syncing rates slow the turning clip, so about 34 deg/s come out of 44.5 asked.
+    The line agrees with playing the clips at those rates."""
+    _, data = planted_build
+    path = data["out"] / "planted.blendspace.json"  # type: ignore[operator]
+    capsys.readouterr()
+    assert main(["eval", str(path), "--at", "x=44.5,y=4.0", "--format", "json"]) == 0
+    entries = json.loads(capsys.readouterr().out)["weights"]
+    assert main(["eval", str(path), "--at", "x=44.5,y=4.0"]) == 0
+    line = next(t for t in capsys.readouterr().out.splitlines() if t.startswith("delivered at these rates"))
+    turn = float(line.split("turn ")[1].split(" deg/s")[0])
+    specs = {s.name: s for s in SAMPLE_SET}
+    played = play(
+        [_prepared(specs[e["clip"]]) for e in entries],
+        [e["weight"] for e in entries],
+        [e["playback_rate"] for e in entries],
+        SETTINGS,
+        seconds=12.0,
+    )
+    assert turn == pytest.approx(played.turn_rate, rel=0.1)
+    assert turn < 0.85 * 44.5  # the rates cost a sixth of the turn or more

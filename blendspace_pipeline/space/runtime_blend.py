@@ -97,6 +97,23 @@ def delivered(samples: Sequence[SampleDoc], weights: Sequence[float], sync: Sync
     )
 
 
+def delivered_at_rates(
+    samples: Sequence[SampleDoc], weights: Sequence[float], rates: Sequence[float]
+) -> Motion | None:
+    """The steady motion of the blend when each sample plays at the given ``rates`` (what
+    `eval` prescribes); None when a sample lacks the velocity features."""
+    motions = [sample_motion(s) for s in samples]
+    total = sum(weights)
+    if total <= 0.0 or any(m is None for m in motions):
+        return None
+    parts = [(w / total * r, m) for w, r, m in zip(weights, rates, motions, strict=True) if m is not None]
+    return Motion(
+        sum(k * m.forward for k, m in parts),
+        sum(k * m.lateral for k, m in parts),
+        sum(k * m.turn_rate for k, m in parts),
+    )
+
+
 def requested(promise: Motion, features: Sequence[str], query: Sequence[float]) -> Motion:
     """The motion a query asks for: the placement's promise (the blend at rate 1) with the axis
     features set to the query's values."""
