@@ -145,6 +145,17 @@ def _summary(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> s
         ("coverage", f"{scene.coverage:.1f}%", "of the axis rectangle"),
         ("max drift", _g(trajectory.measured.max_distance), "% of an axis range, inside the hull"),
     ]
+    quality = doc.blend_quality
+    if quality is not None and "trajectory_error_max" in quality.summary:
+        skate = quality.summary.get("foot_skate_max")
+        cards.append(
+            (
+                "as played",
+                _g(quality.summary["trajectory_error_max"]),
+                f"% error with {quality.sync} sync"
+                + (f"; feet slide up to {_g(skate)} m/s" if skate is not None else ""),
+            )
+        )
     html = "".join(
         f'<div class="card"><div class="card-value">{escape(v)}</div>'
         f'<div class="card-label">{escape(k)}</div>'
@@ -246,7 +257,8 @@ def _trajectory_section(doc: BlendSpaceDocument, scene: Scene, trajectory: Traje
         "Trajectory error",
         '<p class="note">At each point the engine blends the clips of its triangle with weights from their '
         "placed positions; what the character then does is the same blend of what the clips really measure. "
-        "The map shows how far that is from the requested point.</p>"
+        "The map shows how far that is from the requested point: placement only, every clip at its own "
+        'speed; <a href="#engine-blend">the blend as the engine plays it</a> adds sync and playback rates.</p>'
         f'{switch}<div class="heat-wrap"><figure>{heat_map(scene, views, grid.distance.shape)}{bar}</figure>'
         f'<aside id="heat-readout" aria-live="polite">{_trajectory_stats(doc, trajectory)}'
         '<p id="heat-point" class="empty">Point at the map to read the error there.</p></aside></div>',
