@@ -61,24 +61,35 @@ def _source_clip(sample: Sample, generated: Mapping[str, Clip]) -> Clip | None:
     return None
 
 
-def prepare_samples(space: BlendSpace, generated: Mapping[str, Clip]) -> list[PreparedClip | None]:
-    """Every sample's clip ready to play (None when it cannot be read or has no feet)."""
-    settings = rig_settings(space.manifest.model.skeleton)
-    prepared: list[PreparedClip | None] = []
-    for sample in space.samples:
+class PreparedSamples:
+    """Samples' clips ready to play, read on first use: the skate grid touches only the clips of
+    triangles it samples, a few dozen in a thousand-clip space."""
+
+    def __init__(self, space: BlendSpace, generated: Mapping[str, Clip]) -> None:
+        self.space = space
+        self.generated = generated
+        self.settings = rig_settings(space.manifest.model.skeleton)
+        self.cache: dict[int, PreparedClip | None] = {}
+
+    def __getitem__(self, index: int) -> PreparedClip | None:
+        if index not in self.cache:
+            self.cache[index] = self._prepare(self.space.samples[index])
+        return self.cache[index]
+
+    def _prepare(self, sample: Sample) -> PreparedClip | None:
         m = sample.clip.measurement
-        clip = _source_clip(sample, generated)
-        if clip is None or m.contacts is None or clip.frame_count < 4:
-            prepared.append(None)
-            continue
-        clip = without_rest_frame(clip, settings)
+        if m.contacts is None:
+            return None
+        clip = _source_clip(sample, self.generated)
+        if clip is None or clip.frame_count < 4:
+            return None
+        clip = without_rest_frame(clip, self.settings)
         contacts = FootContacts.from_json(m.contacts, clip.duration)
-        prepared.append(prepare(clip, settings, m.meters_per_unit, contacts))
-    return prepared
+        return prepare(clip, self.settings, m.meters_per_unit, contacts)
 
 
 def foot_skate_grid(
-    space: BlendSpace, doc: BlendSpaceDocument, grid: RuntimeGrid, prepared: list[PreparedClip | None]
+    space: BlendSpace, doc: BlendSpaceDocument, grid: RuntimeGrid, prepared: PreparedSamples
 ) -> FloatArray:
     settings = rig_settings(space.manifest.model.skeleton)
     ny, nx = grid.distance.shape
@@ -122,8 +133,10 @@ def blend_quality(
     resolution: int = DEFAULT_GRID,
 ) -> BlendQualityDoc:
     grid = runtime_grid(doc, sync, resolution)
-    prepared = prepare_samples(space, generated or {})
-    skate = foot_skate_grid(space, doc, grid, prepared) if any(p is not None for p in prepared) else None
+    has_feet = any(s.clip.measurement.contacts is not None for s in space.samples)
+    skate = foot_skate_grid(space, doc, grid, PreparedSamples(space, generated or {})) if has_feet else None
+    if skate is not None and not np.isfinite(skate).any():
+        skate = None  # no blend could be played (clips unreadable or without feet)
     summary = {
         **_stats("trajectory_error", grid.distance),
         **_stats("drift", grid.drift),
