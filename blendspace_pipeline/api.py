@@ -99,10 +99,21 @@ class SampleView:
     guesses: tuple[DetectionGuessView, ...] = ()
     # Same key: same joint names, hierarchy and rest offsets (one rig), so one up axis and unit.
     skeleton_key: str = ""
+    # Seconds per stride, None without a gait (idle, turning on the spot).
+    gait_period: float | None = None
+    # Foot contacts: per foot ("left", "right"), (start, end) seconds of the used range.
+    contacts: Mapping[str, tuple[tuple[float, float], ...]] | None = None
+    # Stride phase (0..1) at which each foot plants, None without a gait or contacts.
+    plant_phases: Mapping[str, float] | None = None
 
     def __post_init__(self) -> None:
         # Frozen dataclasses only stop attribute assignment; the mappings need freezing too.
         object.__setattr__(self, "features", _read_only(self.features))
+        if self.contacts is not None:
+            spans = {foot: tuple((float(a), float(b)) for a, b in v) for foot, v in self.contacts.items()}
+            object.__setattr__(self, "contacts", _read_only(spans))
+        if self.plant_phases is not None:
+            object.__setattr__(self, "plant_phases", _read_only(self.plant_phases))
         if self.expect is not None:
             object.__setattr__(self, "expect", _read_only(self.expect))
         object.__setattr__(self, "joint_names", tuple(self.joint_names))

@@ -14,6 +14,7 @@ for real, so a rule sees exactly what a build would give it.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -88,12 +89,22 @@ def space_from_specs(
 
     positions: dict[str, tuple[float, float]] = {}
     features: dict[str, dict[str, float]] = {}
+    gaits: dict[str, dict[str, object]] = {}
     for spec in specs:
         assert isinstance(spec, GaitSpec)
-        measured = measure(generate(spec), RigSettings()).features
+        measurement = measure(generate(spec), RigSettings())
+        measured = measurement.features
         positions[spec.name] = (measured[axes[0].feature], measured[axes[1].feature])
         features[spec.name] = measured
-    return space_from_positions(positions, axes=axes, features=features, **options)  # type: ignore[arg-type]
+        # The gait facts a build's view carries too (stride period, foot contacts, plant phases).
+        gaits[spec.name] = {
+            "gait_period": measurement.gait_period,
+            "contacts": measurement.contacts,
+            "plant_phases": measurement.plant_phases,
+        }
+    space = space_from_positions(positions, axes=axes, features=features, **options)  # type: ignore[arg-type]
+    samples = tuple(replace(s, **gaits[s.name]) for s in space.samples)  # type: ignore[arg-type]
+    return replace(space, samples=samples)
 
 
 def run_rule(rule: type[Rule], space: SpaceView, /, **options: object) -> list[Diagnostic]:

@@ -36,7 +36,8 @@ SPECS = (
     *tidy_set().values(),
     GaitSpec("run_drift", speed=3.0, turn_rate=5.0, duration=1.0),  # 5 deg/s off the axis: misalignment
 )
-# Warnings and infos only (misalignment, in-place idle, uncovered area).
+# Warnings and infos only (misalignment, in-place idle, uncovered area; run_drift's 0.5 s stride
+# next to walk_fwd's 1 s one is a cadence mismatch).
 GOOD = [s.name for s in SPECS]
 # Two turning walks and an idle: the edge between the walks crosses turn_rate = 0 (an error).
 BAD = ["idle", "walk_left", "walk_right"]
@@ -148,7 +149,10 @@ def test_exit_codes(project: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert run(capsys, "check", good, bad)[0] == 1  # the worst manifest decides
     # A manifest with only infos passes even with --strict.
     infos = write_manifest(
-        project, "quiet", GOOD, "rules: {severity: {misalignment: info, in-place-clip: info}}\n"
+        project,
+        "quiet",
+        GOOD,
+        "rules: {severity: {misalignment: info, in-place-clip: info, cadence-mismatch: info}}\n",
     )
     code, found = run_json(capsys, "check", str(infos), "--strict")
     assert {d["severity"] for d in found} == {"info"} and code == 0
@@ -779,6 +783,8 @@ def test_rules_text_lists_every_built_in_rule(capsys: pytest.CaptureFixture[str]
     code, out = run(capsys, "rules")
     rows = {}
     for text in out.splitlines():
+        if text.startswith(" "):
+            continue  # an indented `option ...` line under its rule (cadence-mismatch has one)
         fields = text.split(maxsplit=3)
         rows[fields[1]] = (fields[0], fields[2], text)
     expected = built_in_rules()

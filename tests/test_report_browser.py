@@ -144,3 +144,70 @@ def test_sample_project_report_in_the_browser(browser: Any, tmp_path: Path) -> N
         page.screenshot(path=str(ARTIFACTS / "sample-project-report.png"), full_page=True)
     finally:
         page.close()
+
+
+def test_engine_maps_in_the_browser(browser: Any, tmp_path: Path) -> None:
+    """The trajectory-error and foot-skate maps of the engine-played blend: drawn, coloured, and
+    reading the numbers the JSON carries."""
+    import json
+
+    from blendspace_pipeline.cli import main
+    from blendspace_pipeline.motion.procedural import GaitSpec, generate_planted
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    specs = [
+        GaitSpec("idle", duration=1.0),
+        GaitSpec("walk_fwd", speed=1.4, duration=1.0),
+        GaitSpec("run_fwd", speed=4.0, duration=0.8, stride_length=2.6),
+        GaitSpec("run_turn_left", speed=4.0, turn_rate=90.0, duration=1.0, stride_length=2.6),
+        GaitSpec("walk_turn_left", speed=1.4, turn_rate=60.0, duration=1.5),
+    ]
+    for spec in specs:
+        clip = generate_planted(spec)
+        write_usd_clip(clip, tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: engine\nclips:\n  - path: clips/*.usda\n"
+        "axes:\n  x: {feature: turn_rate, min: -10, max: 100, divisions: 22}\n"
+        "  y: {feature: speed, min: 0, max: 5, divisions: 50}\n"
+    )
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+    summary = json.loads((out / "engine.blendspace.json").read_text())["blend_quality"]["summary"]
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    try:
+        page.goto((out / "engine.report.html").as_uri())
+        for ident in ("runtime-heat", "skate-heat"):
+            figure = page.locator(f"#{ident}")
+            figure.scroll_into_view_if_needed()
+            assert figure.is_visible()
+            box = page.locator(f"#{ident} image").bounding_box()
+            assert box is not None and box["width"] > 100 and box["height"] > 100
+            # The map is a real picture: its pixels take several colours of the ramp.
+            colours = page.evaluate(
+                """async (id) => {
+                    const href = document.querySelector('#' + id + ' image').getAttribute('href');
+                    const img = new Image(); img.src = href; await img.decode();
+                    const c = document.createElement('canvas'); c.width = img.width; c.height = img.height;
+                    const g = c.getContext('2d'); g.drawImage(img, 0, 0);
+                    const d = g.getImageData(0, 0, c.width, c.height).data; const seen = new Set();
+                    for (let i = 0; i < d.length; i += 4) seen.add(d[i] * 65536 + d[i + 1] * 256 + d[i + 2]);
+                    return seen.size;
+                }""",
+                ident,
+            )
+            assert colours > 3
+        maxima = {
+            ident: float(page.get_attribute(f"#{ident}-figure", "data-max"))
+            for ident in ("runtime-heat", "skate-heat")
+        }
+        assert maxima["runtime-heat"] == pytest.approx(summary["trajectory_error_max"], rel=1e-4)
+        assert maxima["skate-heat"] == pytest.approx(summary["foot_skate_max"], rel=1e-4)
+        assert "m/s" in page.inner_text("#engine-stats")
+        ARTIFACTS.mkdir(exist_ok=True)
+        page.locator("#engine-blend").screenshot(path=str(ARTIFACTS / "report-engine-maps.png"))
+    finally:
+        page.close()
+    assert not errors, f"script errors in the report: {errors}"

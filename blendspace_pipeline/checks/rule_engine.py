@@ -290,6 +290,11 @@ def sample_view(
         notes=tuple(m.notes),
         guesses=tuple(DetectionGuessView(g.what, g.value, g.evidence, g.override) for g in m.guesses),
         skeleton_key=m.skeleton_key,
+        gait_period=m.gait_period,
+        contacts={foot: tuple((a, b) for a, b in spans) for foot, spans in m.contacts.items()}
+        if m.contacts is not None
+        else None,
+        plant_phases=m.plant_phases,
     )
 
 

@@ -17,6 +17,7 @@ from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.evaluate import DEFAULT_CULL, Evaluation, LayerReport, evaluate
 from blendspace_pipeline.space.layers_doc import read_document
+from blendspace_pipeline.space.runtime_blend import delivered_at_rates
 
 HELP = "blend weights (and playback rates) the blend graph gives at one query point"
 
@@ -141,7 +142,37 @@ def render(doc: BlendSpaceDocument, result: Evaluation) -> str:
     elif result.outside_hull:
         lines.append("outside the hull of a beta layer: it evaluates at its nearest hull point")
     lines += [_layer_line(report) for report in result.layers]
+    delivered = _delivered_line(doc, result)
+    if delivered:
+        lines.append(delivered)
     return "\n".join(lines) + "\n"
+
+
+def _delivered_line(doc: BlendSpaceDocument, result: Evaluation) -> str | None:
+    """What the character really does when the clips play at these rates (a clip played slower
+    moves and turns slower), next to what was asked; main-space blends only."""
+    by_name = {s.name: s for s in doc.samples}
+    entries = result.weights
+    if not entries or any(
+        e.layer is not None or e.playback_rate is None or e.clip not in by_name for e in entries
+    ):
+        return None
+    motion = delivered_at_rates(
+        [by_name[e.clip] for e in entries],
+        [e.weight for e in entries],
+        [float(e.playback_rate or 1.0) for e in entries],
+    )
+    if motion is None:
+        return None
+    asked = []
+    for axis, value in zip(doc.axes, result.hull_point or result.query, strict=True):
+        got = motion.feature(axis.feature)
+        if got is not None:
+            asked.append(f"{axis.feature} {got:.3g} {axis.unit} for {value:g} asked")
+    return (
+        f"delivered at these rates: forward {motion.forward:.3g} m/s, lateral {motion.lateral:.3g} m/s, "
+        f"turn {motion.turn_rate:.3g} deg/s" + (f" ({'; '.join(asked)})" if asked else "")
+    )
 
 
 _NEAREST = {0: "the only sample position", 1: "the nearest point of the sample line"}

@@ -18,8 +18,10 @@ import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
 from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
 from blendspace_pipeline.motion.clip_ops.sway import stride_starts, sway_free
+from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
     DetectionGuess,
     RigSettings,
@@ -63,6 +65,11 @@ class Measurement:
     # playback rates by. No default on purpose: cache entries written before it existed then fail
     # to load (TypeError) and are measured again instead of reading as "no gait".
     gait_period: float | None
+    # Foot contacts (`contacts.FootContacts.to_json`: seconds of the measured frames per foot) and
+    # the stride phase each foot plants at; None without legs (or without a gait, for phases).
+    # No defaults, for the same reason as `gait_period`.
+    contacts: dict[str, list[list[float]]] | None
+    plant_phases: dict[str, float] | None
     notes: list[str] = field(default_factory=list)
     in_place: bool = False
     units_guessed: bool = False
@@ -191,6 +198,10 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     heading = sway_free(heading, used, settings, (world_rot, world_pos), cycle, positions)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
+    contacts = clip_contacts(used, settings, world_pos, meters_per_unit=meters_per_unit, up_axis=up_axis)
+    phases = (
+        plant_phases(contacts, cycle.phase, used.fps) if contacts is not None and cycle is not None else None
+    )
     return Measurement(
         features=features,
         meters_per_unit=meters_per_unit,
@@ -201,6 +212,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         frames=used.frame_count,
         fps=used.fps,
         gait_period=cycle.period if cycle is not None else None,
+        contacts=contacts.to_json() if contacts is not None else None,
+        plant_phases=phases,
         notes=notes,
         in_place=in_place,
         units_guessed=units_guess is not None,

@@ -258,3 +258,172 @@ SAMPLE_SET: tuple[GaitSpec, ...] = (
     GaitSpec("strafe_left", speed=1.2, direction=90.0, duration=1.0, stride_length=1.0),
     GaitSpec("strafe_right", speed=1.2, direction=-90.0, duration=1.0, stride_length=1.0),
 )
+
+
+# --- Planted gaits: feet that stand still on the ground while in contact ------------------------
+# `generate` swings the legs cosmetically and its feet slide; `generate_planted` places every
+# footstep on the ground and solves the legs onto them with two-bone IK, so contact intervals,
+# foot-down phases and foot sliding (zero) are known by construction.
+ANKLE_HEIGHT = 0.06  # the toe (0.06 below the ankle in the rest pose) then touches the floor
+FOOT_OFFSET = 0.09  # feet land this far left/right of the path (under the hip joints)
+_SWING_LIFT = 0.08  # metres the ankle rises at mid-swing
+_REACH = 0.97  # share of the straight leg (0.82 m) a planted step may use
+
+
+@dataclass(frozen=True)
+class PlantedTruth:
+    """What `generate_planted` built: contact intervals (seconds) and foot-down phases."""
+
+    contacts: dict[str, list[tuple[float, float]]]
+    period: float  # seconds per stride, 0 when the feet never leave the ground
+    duty: float  # share of a stride each foot is planted
+    # Foot-down phases in the convention of `clip_ops.phase` (0: the left foot passes the right
+    # one going forward): the left foot lands half its stance before its mid-stance.
+    plant_phase: dict[str, float]
+
+
+def _planted_cycles(spec: GaitSpec) -> float:
+    if spec.speed > 1e-6:
+        return _cadence(spec)
+    if abs(spec.turn_rate) > 1e-6:  # turning on the spot steps too, about one stride a second
+        return float(max(1, round(spec.duration / 1.0)))
+    return 0.0
+
+
+def _path_at(spec: GaitSpec, times: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Heading (radians) and ground (x, z) at any ``times``, also before 0 and after the end."""
+    lo, hi = min(0.0, float(times.min())), max(spec.duration, float(times.max()))
+    fine = np.linspace(lo, hi, int((hi - lo) * 400) + 2)
+    heading = np.deg2rad(spec.start_heading + spec.turn_rate * fine)
+    travel = heading + np.deg2rad(spec.direction)
+    velocity = spec.speed * np.stack([np.sin(travel), np.cos(travel)], axis=-1)
+    increments = 0.5 * (velocity[1:] + velocity[:-1]) * np.diff(fine)[:, None]
+    path = np.concatenate([np.zeros((1, 2)), np.cumsum(increments, axis=0)])
+    at_zero = np.array([np.interp(0.0, fine, path[:, 0]), np.interp(0.0, fine, path[:, 1])])
+    path = path - at_zero + np.array(spec.start_position)
+    ground = np.stack([np.interp(times, fine, path[:, 0]), np.interp(times, fine, path[:, 1])], axis=-1)
+    return np.deg2rad(spec.start_heading + spec.turn_rate * times), ground
+
+
+def planted_truth(spec: GaitSpec, duty: float | None = None) -> PlantedTruth:
+    """Contact truth of ``generate_planted(spec, duty=duty)``."""
+    duty = _duty(spec, duty)
+    cycles = _planted_cycles(spec)
+    if cycles == 0.0:
+        whole = [(0.0, (max(2, round(spec.duration * spec.fps) + 1) - 1) / spec.fps)]
+        return PlantedTruth({"left": whole, "right": list(whole)}, 0.0, 1.0, {})
+    period = spec.duration / cycles
+    end = (max(2, round(spec.duration * spec.fps) + 1) - 1) / spec.fps
+    contacts: dict[str, list[tuple[float, float]]] = {}
+    for foot, offset in (("left", 0.0), ("right", 0.5)):
+        found = []
+        for k in range(-2, int(cycles) + 3):
+            mid = (k + offset) * period
+            a, b = max(0.0, mid - 0.5 * duty * period), min(end, mid + 0.5 * duty * period)
+            if b > a:
+                found.append((a, b))
+        contacts[foot] = found
+    # Left mid-stance at phase 0.5 of `clip_ops.phase` (mid-swing of the left foot is where it
+    # passes the right one): it lands duty/2 strides earlier, the right foot half a stride later.
+    left = (0.5 - 0.5 * duty) % 1.0
+    return PlantedTruth(contacts, period, duty, {"left": left, "right": (left + 0.5) % 1.0})
+
+
+def _duty(spec: GaitSpec, duty: float | None) -> float:
+    if duty is not None:
+        if not 0.2 <= duty <= 0.8:
+            raise ValueError("duty must lie in [0.2, 0.8]")
+        return duty
+    return 0.62 if spec.speed < 2.5 else 0.38  # walks keep double support, runs have flight
+
+
+def _foot_targets(
+    spec: GaitSpec, times: FloatArray, duty: float, cycles: float, side: float, offset: float
+) -> tuple[FloatArray, FloatArray]:
+    """World ankle positions (F, 3) and foot yaw (F,) of one foot: still during each stance, an
+    arc from one footstep to the next during swing."""
+    frames = len(times)
+    if cycles == 0.0:
+        heading, ground = _path_at(spec, np.zeros(1))
+        spot = _footstep(heading, ground, side)
+        return np.repeat(spot, frames, axis=0), np.repeat(heading, frames)
+    period = spec.duration / cycles
+    half = 0.5 * duty * period
+    # The footstep whose stance is current or was last: its mid-stance time.
+    index = np.floor((times - offset * period + half) / period)
+    mids = (index + offset) * period
+    next_mids = mids + period
+    step_heading, step_ground = _path_at(spec, np.concatenate([mids, next_mids]))
+    spots = _footstep(step_heading, step_ground, side)
+    here, there = spots[:frames], spots[frames:]
+    into_swing = np.clip((times - (mids + half)) / (period - 2.0 * half), 0.0, 1.0)
+    ease = into_swing * into_swing * (3.0 - 2.0 * into_swing)
+    position = here + (there - here) * ease[:, None]
+    position[:, 1] += _SWING_LIFT * np.sin(np.pi * into_swing)
+    yaw = step_heading[:frames] + (step_heading[frames:] - step_heading[:frames]) * ease
+    return position, yaw
+
+
+def _footstep(heading: FloatArray, ground: FloatArray, side: float) -> FloatArray:
+    left = np.stack([np.cos(heading), np.zeros_like(heading), -np.sin(heading)], axis=-1)
+    base = np.stack([ground[:, 0], np.full(len(heading), ANKLE_HEIGHT), ground[:, 1]], axis=-1)
+    spot: FloatArray = base + side * FOOT_OFFSET * left
+    return spot
+
+
+def generate_planted(
+    spec: GaitSpec,
+    *,
+    duty: float | None = None,
+    up: str = "y",
+    meters_per_unit: float = 1.0,
+    source: Path | None = None,
+) -> Clip:
+    """Like `generate`, but each foot stays planted on the ground for ``duty`` of every stride
+    (default 0.62 for walks, 0.38 for runs) and swings to the next footstep in between; feet land
+    under the hip joints on the path, so the root still does exactly what ``spec`` says. Standing
+    clips keep both feet down; turning on the spot steps about once a second. The hips sit low
+    enough that every footstep is within reach (see `planted_truth` for the contact truth).
+    """
+    from blendspace_pipeline.motion.ik import set_world_rotation, solve_leg
+
+    duty = _duty(spec, duty)
+    cycles = _planted_cycles(spec)
+    base = generate(spec)  # hips, spine and arms as usual (Y up, metres, no Root joint)
+    frames = base.frame_count
+    times = np.arange(frames) / spec.fps
+    period = spec.duration / cycles if cycles else spec.duration
+    reach = 0.5 * duty * period * spec.speed + 0.05  # horizontal half-step, plus sway and margin
+    leg = _REACH * 0.82
+    hip_top = ANKLE_HEIGHT + 0.05 + float(np.sqrt(max(leg**2 - reach**2, 0.25 * leg**2)))
+    drop = max(0.0, HIP_HEIGHT + (spec.bob if spec.speed > 1e-6 else 0.0) - hip_top)
+    translations = base.translations.copy()
+    translations[:, base.skeleton.index("Hips"), 1] -= drop
+    clip = Clip(
+        base.name, base.source, base.skeleton, base.rotations.copy(), translations, base.fps, 1.0, "y"
+    )
+    names = clip.skeleton.names
+    heading = np.deg2rad(spec.start_heading + spec.turn_rate * times)
+    forward = np.stack([np.sin(heading), np.zeros(frames), np.cos(heading)], axis=-1)
+    everywhere = np.ones(frames, dtype=bool)
+    for side_name, side, offset in (("Left", 1.0, 0.0), ("Right", -1.0, 0.5)):
+        targets, yaw = _foot_targets(spec, times, duty, cycles, side, offset)
+        chain = (
+            names.index(f"{side_name}UpLeg"),
+            names.index(f"{side_name}Leg"),
+            names.index(f"{side_name}Foot"),
+        )
+        clip = solve_leg(clip, chain, targets, everywhere, pole=forward)
+        clip = set_world_rotation(clip, chain[2], quat.from_axis_angle(_Y, yaw), everywhere)
+        clip.rotations[:, names.index(f"{side_name}Toe")] = quat.IDENTITY
+    translations, rotations = _convert_up(clip.translations, clip.rotations, up, clip.skeleton)
+    return Clip(
+        name=spec.name,
+        source=source or Path(f"{spec.name}.procedural"),
+        skeleton=_scaled(clip.skeleton, meters_per_unit, up),
+        rotations=rotations,
+        translations=translations / meters_per_unit,
+        fps=spec.fps,
+        meters_per_unit=meters_per_unit,
+        up_axis="z" if up == "z" else "y",
+    )

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.pipeline.analysis import analyse
+from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
@@ -131,6 +132,8 @@ def _write_outputs(
             if sample.generated:
                 sample.clip.source = out_dir / folder / f"{sample.name}{source_suffix(sub)}"
     document = to_document(space, out_dir)
+    # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
+    document.blend_quality = blend_quality(space, document, {n: g.clip for n, g in fixes.generated.items()})
     staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
     try:
         staged: list[tuple[Path, Path]] = []

@@ -55,6 +55,7 @@ def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
         snapping_error=[_r(e) for e in sample.snapping_error],
         manual_position=[float(v) for v in entry.position] if entry.position is not None else None,
         clip=_clip_info(sample.clip),
+        contacts=sample.clip.measurement.contacts,
     )
 
 
@@ -75,6 +76,7 @@ def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:
         guesses=[f"{g.what} guessed as {g.value}: set `{g.override}`" for g in m.guesses],
         notes=list(m.notes),
         gait_period=_r(m.gait_period) if m.gait_period is not None else None,
+        plant_phases=m.plant_phases,
     )
 
 

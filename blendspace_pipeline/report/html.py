@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report import tables
 from blendspace_pipeline.report.atomic import atomic_path
@@ -35,9 +36,12 @@ from blendspace_pipeline.report.trajectory_error import (
     manual_triangles,
     measured_positions,
 )
-from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument
 from blendspace_pipeline.space.geometry import normalise
+from blendspace_pipeline.space.runtime_blend import DEFAULT_HORIZON, runtime_grid
 
+# Foot sliding below this (m/s) is scaled as if it were the maximum: a few cm/s is invisible.
+SKATE_SCALE = 0.2
 SIGNIFICANT = 5  # digits kept in the embedded JSON: far below any measurement's precision
 
 
@@ -96,6 +100,7 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
             _section("placeholders", "Clips to add", _placeholder_intro() + tables.placeholders_table(doc)),
             _coverage_section(doc, scene),
             _trajectory_section(doc, scene, trajectory),
+            _engine_section(doc, scene),
             _section("clips", "Clips", tables.clips_table(doc)),
             _section("build", "Build", tables.build_table(doc, stamp)),
         ]
@@ -140,6 +145,17 @@ def _summary(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> s
         ("coverage", f"{scene.coverage:.1f}%", "of the axis rectangle"),
         ("max drift", _g(trajectory.measured.max_distance), "% of an axis range, inside the hull"),
     ]
+    quality = doc.blend_quality
+    if quality is not None and "trajectory_error_max" in quality.summary:
+        skate = quality.summary.get("foot_skate_max")
+        cards.append(
+            (
+                "as played",
+                _g(quality.summary["trajectory_error_max"]),
+                f"% error with {quality.sync} sync"
+                + (f"; feet slide up to {_g(skate)} m/s" if skate is not None else ""),
+            )
+        )
     html = "".join(
         f'<div class="card"><div class="card-value">{escape(v)}</div>'
         f'<div class="card-label">{escape(k)}</div>'
@@ -241,10 +257,141 @@ def _trajectory_section(doc: BlendSpaceDocument, scene: Scene, trajectory: Traje
         "Trajectory error",
         '<p class="note">At each point the engine blends the clips of its triangle with weights from their '
         "placed positions; what the character then does is the same blend of what the clips really measure. "
-        "The map shows how far that is from the requested point.</p>"
+        "The map shows how far that is from the requested point: placement only, every clip at its own "
+        'speed; <a href="#engine-blend">the blend as the engine plays it</a> adds sync and playback rates.</p>'
         f'{switch}<div class="heat-wrap"><figure>{heat_map(scene, views, grid.distance.shape)}{bar}</figure>'
         f'<aside id="heat-readout" aria-live="polite">{_trajectory_stats(doc, trajectory)}'
         '<p id="heat-point" class="empty">Point at the map to read the error there.</p></aside></div>',
+    )
+
+
+def _engine_maps(doc: BlendSpaceDocument) -> tuple[BlendQualityDoc | None, FloatArray, FloatArray | None]:
+    """The engine-played grids: the build's `blend_quality`, else (an older document, a
+    hand-made one) the trajectory error computed from the document, without foot skate."""
+    quality = doc.blend_quality
+    if quality is None and doc.triangles:
+        return None, runtime_grid(doc).distance, None
+    if quality is None:
+        return None, np.full((2, 2), np.nan), None
+
+    def array(rows: list[list[float | None]]) -> FloatArray:
+        return np.array([[np.nan if v is None else v for v in row] for row in rows], dtype=np.float64)
+
+    skate = array(quality.foot_skate) if quality.foot_skate is not None else None
+    return quality, array(quality.trajectory_error), skate
+
+
+def _engine_section(doc: BlendSpaceDocument, scene: Scene) -> str:
+    quality, error, skate = _engine_maps(doc)
+    sync = quality.sync if quality is not None else DEFAULT_SYNC
+    horizon = quality.horizon if quality is not None else DEFAULT_HORIZON
+    summary = quality.summary if quality is not None else {}
+    finite = error[np.isfinite(error)]
+    error_top = scale_maximum(float(finite.max()) if finite.size else 0.0)
+    figures = [
+        _engine_figure(
+            doc,
+            scene,
+            "runtime-heat",
+            "trajectory error as the engine plays it",
+            error,
+            error_top,
+            "error, % of an axis range",
+            float(finite.max()) if finite.size else 0.0,
+        )
+    ]
+    if skate is not None:
+        values = skate[np.isfinite(skate)]
+        top = max(SKATE_SCALE, float(values.max()) if values.size else 0.0)
+        figures.append(
+            _engine_figure(
+                doc,
+                scene,
+                "skate-heat",
+                "foot-skate map",
+                skate,
+                top,
+                "planted-foot sliding, m/s",
+                float(values.max()) if values.size else 0.0,
+            )
+        )
+    else:
+        figures.append(
+            '<figure id="skate-heat-figure" class="empty"><p>No foot-skate map: the build did not play the '
+            "blend on the clips (rigs without recognisable feet, or a document from an older build).</p></figure>"
+        )
+    rows = [
+        ("sync", escape(sync)),
+        (
+            "max trajectory error",
+            f"{_g(summary.get('trajectory_error_max', float(finite.max()) if finite.size else 0.0))} %",
+        ),
+        (
+            "mean trajectory error",
+            f"{_g(summary.get('trajectory_error_mean', float(finite.mean()) if finite.size else 0.0))} %",
+        ),
+    ]
+    if "drift_max" in summary:
+        rows.append(
+            (
+                f"max drift after {horizon:g} s",
+                f"{_g(summary['drift_max'])} m, {_g(summary.get('drift_turn_max', 0.0))}°",
+            )
+        )
+    if "foot_skate_max" in summary:
+        rows.append(
+            (
+                "foot skate (max / mean)",
+                f"{_g(summary['foot_skate_max'])} / {_g(summary['foot_skate_mean'])} m/s",
+            )
+        )
+    table = (
+        '<table class="meta" id="engine-stats">'
+        + "".join(f"<tr><th scope='row'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        + "</table>"
+    )
+    return _section(
+        "engine-blend",
+        "Blend as the engine plays it",
+        f"<p class=\"note\">Each point blends its triangle's clips with the engine's weights, synced "
+        f"<code>{escape(sync)}</code> (clip lengths stretched to their weighted mean, as Unity blend trees and "
+        "Unreal blend spaces do), each clip at its playback rate: a clip played slower moves and turns slower. "
+        "Left: how far the delivered motion is from the requested point. Right: how fast the blended pose's "
+        "planted feet slide.</p>"
+        f'<div class="engine-maps">{"".join(figures)}</div>{table}',
+    )
+
+
+def _engine_figure(
+    doc: BlendSpaceDocument,
+    scene: Scene,
+    ident: str,
+    label: str,
+    values: FloatArray,
+    top: float,
+    unit: str,
+    maximum: float,
+) -> str:
+    axes = axis_ranges(doc)
+    placed = np.asarray([s.position for s in doc.samples], dtype=np.float64).reshape(-1, 2)
+    triangles = [list(t) for t in doc.triangles]
+    normalised = normalise(placed, axes)
+    points = _pixels(scene, normalised)
+    used = sorted({i for t in triangles for i in t})
+    hull = _pixels(scene, np.asarray(convex_hull(normalised[used]))) if used else []
+    edges = sorted(
+        {(min(t[i], t[(i + 1) % 3]), max(t[i], t[(i + 1) % 3])) for t in triangles for i in range(3)}
+    )
+    view = HeatView("measured", png_data_uri(heat_rgba(values, top)), points, edges, hull)
+    bar = (
+        f'<div class="colour-bar"><span class="bar" style="background:{css_gradient()}"></span>'
+        f'<span class="bar-labels"><span>0</span><span>{top / 2:.3g}</span><span>≥ {top:.3g}</span></span>'
+        f'<span class="bar-title">{escape(unit)}</span></div>'
+    )
+    return (
+        f'<figure id="{ident}-figure" data-max="{maximum:.6g}">'
+        f"{heat_map(scene, [view], values.shape, ident=ident, label=label)}{bar}"
+        f"<figcaption>{escape(label)}: max {_g(maximum)} {escape(unit.split(', ')[-1])}</figcaption></figure>"
     )
 
 

@@ -195,22 +195,30 @@ class HeatView:
     arrows: list[tuple[Point, Point]] = field(default_factory=list)  # hand placement → measured
 
 
-def heat_map(scene: Scene, views: list[HeatView], grid_shape: tuple[int, int]) -> str:
+def heat_map(
+    scene: Scene,
+    views: list[HeatView],
+    grid_shape: tuple[int, int],
+    ident: str = "heat",
+    label: str = "trajectory-error map",
+) -> str:
     """The error image stretched so that grid points sit on their axis values, clipped to the plot."""
     left, top, right, bottom = _box(scene)
     ny, nx = grid_shape
     half_w, half_h = (right - left) / (nx - 1) / 2, (bottom - top) / (ny - 1) / 2
     lay = scene.layout
+    # The arrows of hand placement point with this marker (only the trajectory map draws them).
+    marker = "arrow-head" if ident == "heat" else f"{ident}-arrow-head"
     out = [
-        f'<svg id="heat" class="diagram" viewBox="0 0 {lay.width} {lay.height}" role="img" '
-        'aria-label="trajectory-error map"><defs><marker id="arrow-head" viewBox="0 0 10 10" refX="9" '
+        f'<svg id="{ident}" class="diagram" viewBox="0 0 {lay.width} {lay.height}" role="img" '
+        f'aria-label="{label}"><defs><marker id="{marker}" viewBox="0 0 10 10" refX="9" '
         'refY="5" markerWidth="6" markerHeight="6" '
         'orient="auto-start-reverse"><path d="M0 0 L10 5 L0 10 z" class="arrow-head"/></marker></defs>',
         frame(scene),
     ]
     for view in views:
         hidden = "" if view.mode == "measured" else " hidden"
-        clip = f"heat-hull-{view.mode}"
+        clip = f"{ident}-hull-{view.mode}"
         outer = _path([(left, top), (right, top), (right, bottom), (left, bottom)])
         out.append(
             f'<g class="heat-view" data-mode="{view.mode}"{hidden}><clipPath id="{clip}">'

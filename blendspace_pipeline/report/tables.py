@@ -117,7 +117,36 @@ def clips_table(doc: BlendSpaceDocument) -> str:
     return (
         '<div class="scroll"><table id="clips-table"><thead><tr><th>clip</th><th>position</th>'
         f"<th>snapping error</th><th>by hand</th>{heads}<th>fps</th><th>frames</th><th>units</th>"
-        f"<th>skeleton</th><th>notes</th></tr></thead><tbody>{rows}</tbody></table></div>"
+        f"<th>skeleton</th><th>foot contacts<br><small>L / R over the clip</small></th><th>notes</th>"
+        f"</tr></thead><tbody>{rows}</tbody></table></div>"
+    )
+
+
+def contacts_strip(sample: SampleDoc) -> str:
+    """The clip's foot contacts as two bars over its duration (left above, right below), with
+    the stride phase each foot plants at."""
+    duration = sample.features.get("duration", 0.0)
+    if sample.contacts is None or duration <= 0.0:
+        return "–"
+    width, row = 120.0, 8.0
+    bars = []
+    for lane, foot in enumerate(("left", "right")):
+        for start, end in sample.contacts.get(foot, []):
+            x0, x1 = start / duration * width, end / duration * width
+            bars.append(
+                f'<rect class="contact {foot}" x="{x0:.1f}" y="{lane * (row + 2):.1f}" '
+                f'width="{max(x1 - x0, 0.5):.1f}" height="{row:.0f}"><title>{foot} foot down '
+                f"{start:.2f}–{end:.2f} s</title></rect>"
+            )
+    phases = sample.clip.plant_phases if sample.clip is not None else None
+    label = (
+        f"<br><small>plants at phase L {phases['left']:.2f}, R {phases['right']:.2f}</small>"
+        if phases
+        else ""
+    )
+    return (
+        f'<svg class="contacts-strip" width="{width:.0f}" height="{2 * row + 2:.0f}" role="img" '
+        f'aria-label="foot contacts of {e(sample.name)}">{"".join(bars)}</svg>{label}'
     )
 
 
@@ -130,7 +159,7 @@ def _clip_row(index: int, sample: SampleDoc, features: list[str]) -> str:
     cells = "".join(f"<td>{num(sample.features.get(f))}</td>" for f in features)
     info = sample.clip
     if info is None:
-        facts = "<td>–</td><td>–</td><td>–</td><td>–</td><td>–</td>"
+        facts = f"<td>–</td><td>–</td><td>–</td><td>–</td><td>{contacts_strip(sample)}</td><td>–</td>"
     else:
         trim = (
             f"<br>range {pair(info.range)} s" + (" (auto)" if info.range_auto else "") if info.range else ""
@@ -140,6 +169,7 @@ def _clip_row(index: int, sample: SampleDoc, features: list[str]) -> str:
             f"<td>{num(info.fps)}</td><td>{info.frames}</td>"
             f"<td>{num(info.meters_per_unit)} m/unit<br><small>{e(info.units_source)}</small></td>"
             f"<td>up {e(info.up_axis)}<br>root {e(info.root)}<br>facing {e(info.facing)}{trim}</td>"
+            f"<td>{contacts_strip(sample)}</td>"
             f"<td>{'<br>'.join(e(n) for n in info.notes) or '–'}</td>"
         )
     return (

@@ -54,6 +54,11 @@ class ClipInfoDoc(_Strict):
         "turn on the spot); `eval` syncs playback rates by it. Absent in documents written before it "
         "existed, where `eval` falls back to the clip's duration.",
     )
+    plant_phases: dict[str, float] | None = Field(
+        default=None,
+        description="Stride phase (0..1, 0 where the left foot passes the right one going forward) at "
+        "which each foot plants (`left`, `right`); null without a gait or without foot contacts.",
+    )
 
 
 class SampleDoc(_Strict):
@@ -73,6 +78,11 @@ class SampleDoc(_Strict):
         default=None, description="Position an author gave by hand in the manifest (`position:`), if any."
     )
     clip: ClipInfoDoc | None = Field(default=None, description="Facts about the measured clip.")
+    contacts: dict[str, list[list[float]]] | None = Field(
+        default=None,
+        description="Foot contacts per foot (`left`, `right`): [start, end] seconds of the used range "
+        "during which the foot stands on the ground; absent for rigs without recognisable feet.",
+    )
 
 
 class LocationDoc(_Strict):
@@ -112,6 +122,37 @@ class BuildInfoDoc(_Strict):
     settings: dict[str, Any] = Field(default_factory=dict, description="Other settings in force.")
 
 
+Grid = list[list[float | None]]
+
+
+class BlendQualityDoc(_Strict):
+    """The blend as the engine plays it (`space.runtime_blend`, `pipeline.blend_quality`)."""
+
+    sync: Literal["none", "normalized", "markers"] = Field(
+        description="How the samples were synced: none (every clip at rate 1), normalized (clip lengths "
+        "stretched to their weighted mean: Unity, Unreal blend spaces, Godot) or markers (foot-down "
+        "markers aligned to the heaviest clip)."
+    )
+    horizon: float = Field(description="Seconds of play the drift is measured over.")
+    xs: list[float] = Field(description="Grid x values, axis units (columns).")
+    ys: list[float] = Field(description="Grid y values, axis units (rows).")
+    trajectory_error: Grid = Field(
+        description="Per grid point (rows along y), the distance between the requested and the delivered "
+        "axis values, % of an axis range; null outside the hull."
+    )
+    drift: Grid = Field(description="Metres between the requested and the delivered paths after `horizon` s.")
+    drift_turn: Grid = Field(description="Degrees between their headings after `horizon` s.")
+    foot_skate: Grid | None = Field(
+        default=None,
+        description="Mean ground speed (m/s) of the planted feet of the blended pose; null where unknown "
+        "(outside the hull, clips without feet or unreadable).",
+    )
+    summary: dict[str, float] = Field(
+        default_factory=dict,
+        description="max/mean of each grid inside the hull (trajectory_error_max, drift_max, foot_skate_max, ...).",
+    )
+
+
 class BlendSpaceDocument(_Strict):
     schema_version: Literal[1] = Field(description="Version of this JSON layout.")
     name: str = Field(description="Blend-space name (file stem of the outputs).")
@@ -121,4 +162,7 @@ class BlendSpaceDocument(_Strict):
     diagnostics: list[DiagnosticDoc] = Field(default_factory=list, description="Findings of the rules.")
     placeholders: list[PlaceholderDoc] = Field(default_factory=list, description="Clips the set should gain.")
     layers: list[dict[str, Any]] = Field(default_factory=list, description="Beta and style layers.")
+    blend_quality: BlendQualityDoc | None = Field(
+        default=None, description="The blend as the engine plays it: trajectory error, drift and foot skate."
+    )
     build: BuildInfoDoc | None = Field(default=None, description="Build metadata (omitted from goldens).")

@@ -73,6 +73,10 @@ def _write_samples(stage: Usd.Stage, parent: Usd.Prim, sample_docs: Sequence[Sam
         _attr(prim, "generated", Sdf.ValueTypeNames.Bool, sample.generated)
         if sample.fix:
             _attr(prim, "fix", Sdf.ValueTypeNames.Token, sample.fix)
+        if sample.contacts is not None:
+            # Per foot, [start, end] seconds of the used range, as pairs (spec.md's `contacts`).
+            for foot, spans in sorted(sample.contacts.items()):
+                _attr(prim, f"contacts:{foot}", Sdf.ValueTypeNames.Double2Array, [tuple(s) for s in spans])
         for feature, value in sorted(sample.features.items()):
             _attr(prim, f"features:{feature}", Sdf.ValueTypeNames.Double, value)
     # Triangle indices refer to samples in this order, whatever order a tool lists children in.

@@ -1,0 +1,246 @@
+"""Foot contacts: when each foot stands on the ground, where in the stride it plants, sync markers.
+
+A foot is planted while its lowest point (the ankle, or the toe below it when the rig has one)
+is near its own floor and barely moves over the ground. Both tests are done in metres, so they
+hold for any file unit, and on smoothed signals with hysteresis so mocap jitter does not split a
+contact into flickers:
+
+- the floor of a foot is a low percentile of its height over the clip (the ground of the take,
+  whatever the rig's origin; a single noisy frame does not move it);
+- "near" is a share of how high the foot lifts, bounded to a few centimetres;
+- "barely moves" is a horizontal speed below a fixed walking-scale threshold, loosened a little
+  for fast gaits whose planted feet roll from heel to toe faster.
+
+A contact then starts when both hold and ends when either is clearly broken; contacts shorter
+than a few hundredths of a second are dropped and gaps that short are closed. The phase where a
+foot plants is the gait phase (see `clip_ops.phase`) at the start of its contacts, averaged on
+the circle; sync markers are those starts, named like Unreal's (``LeftFootDown``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from blendspace_pipeline.motion.quaternions import FloatArray
+
+FEET = ("left", "right")
+BoolArray = NDArray[np.bool_]
+MARKER_NAMES = {"left": "LeftFootDown", "right": "RightFootDown"}
+# Floor of a foot: this percentile of its height (a take's lowest few frames may be glitches).
+_FLOOR_PERCENTILE = 5.0
+# Near the floor: this share of the foot's lift, between these bounds in metres.
+_HEIGHT_SHARE = 0.3
+_HEIGHT_BOUNDS = (0.03, 0.1)
+# A planted foot's ground speed stays below this (m/s); swing feet move at about twice the
+# character's speed, so the threshold may grow with the speed but never near the swing speed.
+_PLANTED_SPEED = 0.35
+_PLANTED_SPEED_SHARE = 0.15  # of the character's mean ground speed
+# Hysteresis: a contact ends once height or speed exceeds the threshold by this factor.
+_RELEASE = 1.4
+# Contacts and gaps shorter than this (seconds) are noise.
+_MIN_EVENT = 0.05
+# Smoothing window of the speed signal, seconds.
+_SMOOTH = 0.05
+
+
+@dataclass(frozen=True)
+class FootContacts:
+    """Contact intervals per foot, in seconds from the clip's first (measured) frame."""
+
+    left: list[tuple[float, float]]
+    right: list[tuple[float, float]]
+    duration: float
+
+    def of(self, foot: str) -> list[tuple[float, float]]:
+        return self.left if foot == "left" else self.right
+
+    def to_json(self) -> dict[str, list[list[float]]]:
+        return {foot: [[round(a, 4), round(b, 4)] for a, b in self.of(foot)] for foot in FEET}
+
+    @classmethod
+    def from_json(cls, data: dict[str, list[list[float]]], duration: float) -> FootContacts:
+        return cls(
+            [(float(a), float(b)) for a, b in data.get("left", [])],
+            [(float(a), float(b)) for a, b in data.get("right", [])],
+            duration,
+        )
+
+    def mask(self, foot: str, times: FloatArray) -> BoolArray:
+        """True where ``foot`` is planted at ``times`` (seconds)."""
+        inside = np.zeros(len(times), dtype=bool)
+        for start, end in self.of(foot):
+            inside |= (times >= start - 1e-9) & (times <= end + 1e-9)
+        return inside
+
+    def duty(self, foot: str) -> float:
+        """Share of the clip the foot spends planted."""
+        if self.duration <= 0.0:
+            return 0.0
+        return float(sum(b - a for a, b in self.of(foot))) / self.duration
+
+
+def sync_markers(contacts: FootContacts) -> list[tuple[float, str]]:
+    """(time, name) of every foot-down event, sorted by time: what Unreal's sync markers hold.
+
+    A contact already under way at the clip's first frame is not a foot-down event there.
+    """
+    markers = [(start, MARKER_NAMES[foot]) for foot in FEET for start, _ in contacts.of(foot) if start > 1e-9]
+    return sorted(markers)
+
+
+def _smooth(values: FloatArray, window: int) -> FloatArray:
+    if window <= 1 or len(values) < window:
+        return values
+    kernel = np.ones(window) / window
+    padded = np.concatenate(
+        [np.full(window // 2, values[0]), values, np.full(window - 1 - window // 2, values[-1])]
+    )
+    smoothed: FloatArray = np.convolve(padded, kernel, mode="valid")
+    return smoothed
+
+
+def _ground_speed(track: FloatArray, fps: float, reach: int) -> FloatArray:
+    """Speed from the displacement over ``reach`` frames either side: per-frame differences of
+    mocap amplify its millimetre jitter into tenths of a metre per second at 120 fps."""
+    frames = len(track)
+    index = np.arange(frames)
+    ahead, behind = np.minimum(index + reach, frames - 1), np.maximum(index - reach, 0)
+    span = np.maximum(ahead - behind, 1) / fps
+    speed: FloatArray = np.linalg.norm(track[ahead] - track[behind], axis=1) / span
+    return speed
+
+
+def _intervals(mask: BoolArray, fps: float) -> list[tuple[float, float]]:
+    """[start, end] seconds of runs of True, short gaps closed and short runs dropped."""
+    frames = len(mask)
+    runs: list[list[int]] = []
+    start = None
+    for i in range(frames + 1):
+        on = bool(mask[i]) if i < frames else False
+        if on and start is None:
+            start = i
+        elif not on and start is not None:
+            runs.append([start, i - 1])
+            start = None
+    shortest = _MIN_EVENT * fps
+    merged: list[list[int]] = []
+    for run in runs:
+        if merged and run[0] - merged[-1][1] - 1 < shortest:
+            merged[-1][1] = run[1]
+        else:
+            merged.append(run)
+    kept = [r for r in merged if r[1] - r[0] + 1 >= shortest or r[0] == 0 or r[1] == frames - 1]
+    return [(r[0] / fps, r[1] / fps) for r in kept if r[1] > r[0]]
+
+
+def detect_contacts(
+    world_pos: FloatArray,
+    feet: tuple[list[int], list[int]],
+    *,
+    fps: float,
+    meters_per_unit: float,
+    up_axis: str,
+) -> FootContacts:
+    """Contact intervals of the two feet.
+
+    ``world_pos`` is the clip's forward kinematics (F, J, 3) in file units; ``feet`` lists, per
+    foot (left, right), the joints that may touch the ground (ankle, then toe).
+    """
+    frames = len(world_pos)
+    up, up_sign, ground = _vertical(up_axis)
+    positions = world_pos * meters_per_unit
+    # The character's ground speed (mean of every joint: the body's centre), to scale thresholds.
+    centre = positions.mean(axis=1)[:, ground]
+    duration = (frames - 1) / fps
+    travel = float(np.linalg.norm(np.diff(centre, axis=0), axis=1).sum()) / duration if duration > 0 else 0.0
+    speed_limit = _PLANTED_SPEED + _PLANTED_SPEED_SHARE * travel
+    window = max(1, round(_SMOOTH * fps))
+    reach = max(1, round(0.5 * _SMOOTH * fps))
+    found = []
+    for joints in feet:
+        planted = np.zeros(frames, dtype=bool)
+        for joint in joints:
+            height = _smooth(up_sign * positions[:, joint, up], window)
+            floor = float(np.percentile(height, _FLOOR_PERCENTILE))
+            lift = float(np.percentile(height, 100.0 - _FLOOR_PERCENTILE)) - floor
+            near = float(np.clip(_HEIGHT_SHARE * lift, *_HEIGHT_BOUNDS))
+            speed = _ground_speed(positions[:, joint][:, ground], fps, reach)
+            low = height - floor
+            planted |= _hysteresis(low, near, speed, speed_limit)
+        found.append(_intervals(planted, fps))
+    return FootContacts(found[0], found[1], duration)
+
+
+def _hysteresis(low: FloatArray, near: float, speed: FloatArray, limit: float) -> BoolArray:
+    """Planted: enters when both height and speed are under their thresholds, leaves once either
+    exceeds its threshold times `_RELEASE`."""
+    inside = np.zeros(len(low), dtype=bool)
+    state = False
+    for i in range(len(low)):
+        if state:
+            state = bool(low[i] <= near * _RELEASE and speed[i] <= limit * _RELEASE)
+        else:
+            state = bool(low[i] <= near and speed[i] <= limit)
+        inside[i] = state
+    return inside
+
+
+def plant_phases(contacts: FootContacts, phase: FloatArray, fps: float) -> dict[str, float] | None:
+    """Per foot, the gait phase (0..1, strides since the left foot passed the right going
+    forward) at which it plants, averaged on the circle over its foot-down events; None when a
+    foot never plants inside the clip."""
+    result = {}
+    frames = np.arange(len(phase), dtype=np.float64)
+    for foot in FEET:
+        starts = [start for start, _ in contacts.of(foot) if start > 1e-9]
+        if not starts:
+            return None
+        values = np.interp(np.array(starts) * fps, frames, phase)
+        angle = 2.0 * np.pi * values
+        mean = float(np.arctan2(np.sin(angle).mean(), np.cos(angle).mean())) / (2.0 * np.pi)
+        result[foot] = round(mean % 1.0, 4)
+    return result
+
+
+def phase_distance(a: float, b: float) -> float:
+    """Distance of two phases on the unit circle (0..0.5)."""
+    d = abs(a - b) % 1.0
+    return min(d, 1.0 - d)
+
+
+def foot_sliding(
+    world_pos: FloatArray,
+    joints: tuple[list[int], list[int]],
+    contacts: FootContacts,
+    *,
+    fps: float,
+    meters_per_unit: float,
+    up_axis: str,
+) -> float | None:
+    """Mean ground speed (m/s) of the feet while planted: per foot, the slower of its joints
+    (a rolling foot pivots on the heel, then the toe); None when no foot is ever planted."""
+    _, _, ground = _vertical(up_axis)
+    times = np.arange(len(world_pos)) / fps
+    speeds = []
+    for foot, chain in zip(FEET, joints, strict=True):
+        down = contacts.mask(foot, times)
+        steady = down[1:] & down[:-1]
+        if not steady.any():
+            continue
+        per_joint = [
+            np.linalg.norm(np.diff(world_pos[:, j][:, ground], axis=0), axis=1) * fps * meters_per_unit
+            for j in chain
+        ]
+        speeds.append(np.minimum.reduce(per_joint)[steady])
+    if not speeds:
+        return None
+    return float(np.concatenate(speeds).mean())
+
+
+def _vertical(up_axis: str) -> tuple[int, float, list[int]]:
+    """(index of the up axis, +1 or -1 for its direction, the two ground axes) for "y", "-z", ..."""
+    up = "xyz".index(up_axis.lstrip("+-"))
+    return up, (-1.0 if up_axis.startswith("-") else 1.0), [axis for axis in range(3) if axis != up]
