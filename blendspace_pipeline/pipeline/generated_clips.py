@@ -3,14 +3,17 @@
 A generated clip is written with the units and up axis its measurement established (BVH files do
 not say theirs), so it opens at the right size in any USD tool. When every source of the set is
 BVH, the clip is also written as BVH with the source's own hierarchy header and channel layout,
-so it drops into the same pipeline as the clips it came from.
+so it drops into the same pipeline as the clips it came from. Every file carries the clip's
+provenance (`readers.provenance`): how the next build knows it for a generated clip.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from blendspace_pipeline import __version__
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
+from blendspace_pipeline.readers.provenance import Provenance
 from blendspace_pipeline.space.model import BlendSpace
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
@@ -27,6 +30,18 @@ def bvh_template(space: BlendSpace, generated: GeneratedClip) -> Path | None:
     return sources[0]
 
 
+def provenance_of(generated: GeneratedClip) -> Provenance:
+    """The record written into every file of ``generated``: rule, sources, weights, tool version."""
+    return Provenance(
+        rule=generated.rule,
+        sources=generated.sources,
+        weights=generated.weights,
+        tool="blendspace-pipeline",
+        version=__version__,
+        note=generated.note,
+    )
+
+
 def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Path) -> list[Path]:
     """Write ``generated`` into ``folder``; returns the files written."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -35,11 +50,12 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
     units = measured.measurement.meters_per_unit if measured else clip.meters_per_unit
     up = measured.measurement.up_axis if measured else clip.up_axis
     written = [folder / f"{clip.name}.usda"]
-    write_usd_clip(clip, written[0], meters_per_unit=units, up_axis=up)
+    record = provenance_of(generated)
+    write_usd_clip(clip, written[0], meters_per_unit=units, up_axis=up, provenance=record)
     template = bvh_template(space, generated)
     if template is not None:
         from blendspace_pipeline.writers.bvh import write_bvh_clip
 
         written.append(folder / f"{clip.name}.bvh")
-        write_bvh_clip(clip, written[1], template=template)
+        write_bvh_clip(clip, written[1], template=template, provenance=record)
     return written
