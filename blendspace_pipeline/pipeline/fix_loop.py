@@ -344,7 +344,9 @@ class _Fixer:
                 keep = members[0]
             dropped = [n for n in members if n != keep and n not in kept]
             if not dropped:
-                raise _Refused(f"{_names(kept)} are key clips ({self.keys[kept[0]]}); too-close never drops them")
+                raise _Refused(
+                    f"{_names(kept)} are key clips ({self.keys[kept[0]]}); too-close never drops them"
+                )
             for name in dropped:
                 self.state.removed[name] = f"too-close: {keep} kept as the representative"
             return True

@@ -20,13 +20,12 @@ from pathlib import Path
 
 import numpy as np
 from pxr import Gf, Sdf, Tf, Usd, UsdGeom, UsdSkel, Vt
-
-from blendspace_pipeline.readers.provenance import USD_KEY, Provenance
 from scipy.spatial.transform import Rotation
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.provenance import USD_KEY, Provenance
 
 SUFFIXES = (".usd", ".usda", ".usdc")
 # customData key path (nested dictionary ``blendspace_pipeline = {hasHierarchy = false}``) on the
