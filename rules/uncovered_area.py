@@ -69,17 +69,22 @@ SLACK = 0.10
 def envelope(space: SpaceView) -> list[tuple[float, float]]:
     """Positions (axis units) a new clip may be suggested at: corners of what the set can do.
 
-    The authored set's extents on each axis bound it (generated clips repeat authored extremes).
-    On (turn rate, speed) axes the turn rate is also capped by what a body holds at that speed
+    The set's extents on each axis bound it (a turn rate symmetrically: what a body does to the
+    left it does to the right). On (turn rate, speed) axes the turn rate is also capped by what a body holds at that speed
     (`LATERAL_ACCELERATION`): at the fastest speeds the corners come in towards turn 0.
     """
-    authored = [s for s in space.samples if not s.generated] or list(space.samples)
-    xs = [s.measured[0] for s in authored]
-    ys = [s.measured[1] for s in authored]
+    xs = [s.measured[0] for s in space.samples]
+    ys = [s.measured[1] for s in space.samples]
     x_lo, x_hi, y_lo, y_hi = min(xs), max(xs), min(ys), max(ys)
     features = (space.axes[0].feature, space.axes[1].feature)
     turn = 0 if features[0] in TURN_FEATURES else 1 if features[1] in TURN_FEATURES else None
     speed = 1 - turn if turn is not None and features[1 - turn] in SPEED_FEATURES else None
+    if turn is not None:  # a body turns both ways as fast: the turn extent is symmetric
+        reach = max(abs(v) for v in (xs if turn == 0 else ys))
+        if turn == 0:
+            x_lo, x_hi = -reach, reach
+        else:
+            y_lo, y_hi = -reach, reach
     if turn is None or speed is None:
         points = [(x_lo, y_lo), (x_hi, y_lo), (x_hi, y_hi), (x_lo, y_hi)]
         points += [((x_lo + x_hi) / 2, y_lo), (x_hi, (y_lo + y_hi) / 2)]
@@ -142,6 +147,8 @@ class UncoveredArea(Rule):
             ]
             lo, hi = max(min(values), axis.minimum), min(max(values), axis.maximum)
             span = axis.maximum - axis.minimum
+            if hi <= lo:  # the set does not spread on this axis: nothing to narrow to
+                continue
             if (lo - axis.minimum) > SLACK * span or (axis.maximum - hi) > SLACK * span:
                 parts.append(f"{axis.feature} to [{lo:.3g}, {hi:.3g}]")
         return ", ".join(parts)

@@ -347,6 +347,8 @@ def actual_uncovered(space: RandomSpace, findings: list[Diagnostic]) -> set[Key]
             assert -1e-9 <= p[0] <= 100 + 1e-9 and -1e-9 <= p[1] <= 100 + 1e-9, space.describe()
             for k in (0, 1):
                 values = [space.measured[n][k] for n in names]
+                if space.axes[k].feature == "turn_rate":  # a body turns both ways as fast
+                    values += [-v for v in values]
                 assert min(values) - 1e-9 <= mark.position[k] <= max(values) + 1e-9, space.describe()
             edges = zip(hull, hull[1:] + hull[:1], strict=True)
             exact_p = (Fraction(p[0]), Fraction(p[1]))

@@ -283,7 +283,7 @@ class _Fixer:
                 replaced.add(record.sources[0])
         lost = sorted(n for n in self.keys if n not in present and n not in replaced)
         if lost:
-            return f"it would drop {_names(lost)} ({self.keys[lost[0]]}), a key clip of the authored set"
+            return f"it would drop {self._why_key(lost)}"
         old, new = score(before), score(after)
         if new < old:
             return None
@@ -344,17 +344,12 @@ class _Fixer:
                 keep = members[0]
             dropped = [n for n in members if n != keep and n not in kept]
             if not dropped:
-                raise _Refused(
-                    f"{_names(kept)} are key clips ({self.keys[kept[0]]}); too-close never drops them"
-                )
+                raise _Refused(f"{self._why_key(kept)}; too-close never drops a key clip")
             for name in dropped:
                 self.state.removed[name] = f"too-close: {keep} kept as the representative"
             return True
         if len(loose) < 2:
-            raise _Refused(
-                f"{_names(kept)} {'is a key clip' if len(kept) == 1 else 'are key clips'} "
-                f"({self.keys[kept[0]]}); too-close never merges them away"
-            )
+            raise _Refused(f"{self._why_key(kept)}; too-close never merges a key clip away")
         name = self._unique(_safe("merged_" + "_".join(sorted(loose))))
         clips = [self._clip(n) for n in sorted(loose)]
         weights = [1.0 / len(clips)] * len(clips)
@@ -481,6 +476,10 @@ class _Fixer:
             )
         )
 
+    def _why_key(self, names: Sequence[str]) -> str:
+        listed = ", ".join(f"{n} ({self.keys[n]})" for n in names)
+        return f"{listed} {'is a key clip' if len(names) == 1 else 'are key clips'} of the authored set"
+
     def _reject(self, diagnostic: Diagnostic, kind: str, why: str) -> None:
         self.state.rejected.append(
             Diagnostic(
@@ -536,10 +535,6 @@ class _Fixer:
 
 class _Refused(Exception):
     """A fix that must not be made (it would lose a key clip): becomes a fix-rejected finding."""
-
-
-def _names(names: Sequence[str]) -> str:
-    return ", ".join(names)
 
 
 def _normalise(space: BlendSpace, point: Sequence[float]) -> tuple[float, float]:
