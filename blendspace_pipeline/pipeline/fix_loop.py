@@ -37,9 +37,11 @@ from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
+from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.provenance import Provenance, read_provenance
 from blendspace_pipeline.space.geometry import normalise
+from blendspace_pipeline.space.hull import convex_hull, hull_coverage
 from blendspace_pipeline.space.model import BlendSpace, MeasuredClip, Sample, assemble
 
 MAX_ROUNDS = 6
@@ -96,6 +98,7 @@ def apply_fixes(space: BlendSpace) -> tuple[BlendSpace, FixState]:
                 progress |= kept
         if not progress:
             break
+    converge_placeholders(space)
     space.diagnostics = sorted(
         space.diagnostics + state.skipped + state.rejected + _removals(space, fixer), key=Diagnostic.sort_key
     )
@@ -120,38 +123,6 @@ def score(space: BlendSpace) -> Score:
     warnings = sum(d.severity == "warning" for d in space.diagnostics)
     points = [(float(x), float(y)) for x, y in space.normalised_positions()]
     return errors, warnings, -round(hull_coverage(points), 6)
-
-
-def hull_coverage(points: list[tuple[float, float]]) -> float:
-    """Share (0..1) of the 0..100 square inside the convex hull of ``points`` (clipped to it)."""
-    pts = sorted({(min(max(x, 0.0), 100.0), min(max(y, 0.0), 100.0)) for x, y in points})
-    hull = convex_hull(pts)
-    if len(hull) < 3:
-        return 0.0
-    area = 0.5 * abs(sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(hull, hull[1:] + hull[:1], strict=True)))
-    return area / 10000.0
-
-
-def convex_hull(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
-    """Convex hull vertices, counter-clockwise (monotone chain); collinear points are left out."""
-    pts = sorted(set(points))
-    if len(pts) < 3:
-        return pts
-
-    def cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[tuple[float, float]] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 1e-9:
-            lower.pop()
-        lower.append(p)
-    upper: list[tuple[float, float]] = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 1e-9:
-            upper.pop()
-        upper.append(p)
-    return lower[:-1] + upper[:-1]
 
 
 def key_clips(space: BlendSpace) -> dict[str, str]:
