@@ -238,3 +238,21 @@ def test_generated_clips_carry_provenance_and_the_report_shows_refusals(tmp_path
     assert read_provenance(folder / "walk_13.bvh") is None  # authored: no record
     html = (out / "loco.report.html").read_text()
     assert 'id="refused"' in html and "never merges a key clip away" in html
+
+
+def test_placeholders_beyond_the_simulation_budget_pass_unchecked(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from blendspace_pipeline.pipeline import placeholders
+    from blendspace_pipeline.pipeline.analysis import analyse
+
+    specs = (*DRAFT, GaitSpec("turn_in_place_right", turn_rate=-90.0, duration=2.0), *WALKS)
+    manifest = _project(tmp_path, specs)
+    checked = analyse(manifest)
+    monkeypatch.setattr(placeholders, "BUDGET", 0)
+    unchecked = analyse(manifest)
+    acute = [d for d in unchecked.diagnostics if d.rule == "acute-triangle"]
+    assert len(acute) == 6 and all(len(d.placeholders) == 1 for d in acute)  # the rule's own, kept
+    assert all("not checked by simulation" in (d.hint or "") for d in acute)
+    # Checked, four of the six slivers have no single-clip cure and lose their marker.
+    assert sum(not d.placeholders for d in checked.diagnostics if d.rule == "acute-triangle") == 4

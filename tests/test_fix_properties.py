@@ -56,9 +56,7 @@ def _write(folder: Path, specs: list[GaitSpec]) -> None:
 
 def _manifest(root: Path, extra: str = "") -> Path:
     manifest = root / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.usda\n" + AXES + extra
-    )
+    manifest.write_text("schema_version: 1\nname: loco\nclips:\n  - path: clips/*.usda\n" + AXES + extra)
     return manifest
 
 

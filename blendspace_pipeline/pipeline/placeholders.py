@@ -33,6 +33,11 @@ VIRTUAL = "(placeholder)"
 # Findings about a clip's own animation: not counted when only the virtual sample has them.
 _CLIP_LEVEL_OK = frozenset({"misalignment", "outside-axis-range"})
 MAX_TRIES = 24  # simulations per placeholder (each is a placement, triangulation and rule run)
+# Simulations cost about linearly in the number of samples: the budget is in sample-simulations
+# (simulations x samples), so a 13-clip set can try ~1,500 positions and a 1,000-clip set ~20.
+# Placeholders beyond it are passed on unchecked, and their finding says so. A count, not a
+# time, so that builds stay byte-identical.
+BUDGET = 20_000
 SEVERE = ("error", "warning")
 
 Key = tuple[object, ...]
@@ -47,6 +52,7 @@ def converge_placeholders(space: BlendSpace) -> None:
     before = _keys(space.diagnostics)
     coverage = _coverage(space)
     cache: dict[tuple[object, ...], tuple[set[Key], float]] = {}
+    budget = [BUDGET // max(len(space.samples), 1)]
 
     def simulate(point: tuple[float, float], without: tuple[str, ...]) -> tuple[set[Key], float]:
         key = (round(point[0], 9), round(point[1], 9), *without)
@@ -66,18 +72,29 @@ def converge_placeholders(space: BlendSpace) -> None:
         marks: list[Placeholder] = []
         lost = 0
         moved: list[tuple[float, float]] = []
+        unchecked = False
         for mark in diagnostic.placeholders:
             if mark.priority != "suggested":
                 marks.append(mark)
                 continue
             found = None
+            if budget[0] <= 0:
+                marks.append(mark)
+                unchecked = True
+                continue
             for point in _candidates(space, diagnostic, mark)[:MAX_TRIES]:
+                if budget[0] <= 0:
+                    break
+                budget[0] -= 1
                 after, covered = simulate(point, without)
                 cured = covered > coverage + 1e-9 if diagnostic.rule == "uncovered-area" else own not in after
                 if cured and not (after - before):
                     found = point
                     break
-            if found is None:
+            if found is None and budget[0] <= 0:
+                marks.append(mark)  # ran out of budget before an answer: passed on unchecked
+                unchecked = True
+            elif found is None:
                 lost += 1
             elif found == mark.position:
                 marks.append(mark)
@@ -91,6 +108,9 @@ def converge_placeholders(space: BlendSpace) -> None:
         elif moved:
             at = ", ".join(f"({p[0]:.3g}, {p[1]:.3g})" for p in moved)
             note = f"tried by simulation, a clip at {at} removes it without adding a finding"
+        if unchecked:
+            extra = "placeholder not checked by simulation (the space is too large for its budget)"
+            note = f"{note}; {extra}" if note else extra
         if note:
             diagnostic = replace(diagnostic, hint=f"{diagnostic.hint}; {note}" if diagnostic.hint else note)
         changed.append(replace(diagnostic, placeholders=tuple(_unique(marks))))
