@@ -240,7 +240,7 @@ def test_generated_clips_carry_provenance_and_the_report_shows_refusals(tmp_path
     assert 'id="refused"' in html and "never merges a key clip away" in html
 
 
-def test_placeholders_beyond_the_simulation_budget_pass_unchecked(
+def test_placeholders_beyond_the_simulation_budget_are_not_suggested(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from blendspace_pipeline.pipeline import placeholders
@@ -252,7 +252,7 @@ def test_placeholders_beyond_the_simulation_budget_pass_unchecked(
     monkeypatch.setattr(placeholders, "BUDGET", 0)
     unchecked = analyse(manifest)
     acute = [d for d in unchecked.diagnostics if d.rule == "acute-triangle"]
-    assert len(acute) == 6 and all(len(d.placeholders) == 1 for d in acute)  # the rule's own, kept
+    assert len(acute) == 6 and not any(d.placeholders for d in acute)  # unchecked: not suggested
     assert all("not checked by simulation" in (d.hint or "") for d in acute)
     # Checked, four of the six slivers have no single-clip cure and lose their marker.
     assert sum(not d.placeholders for d in checked.diagnostics if d.rule == "acute-triangle") == 4

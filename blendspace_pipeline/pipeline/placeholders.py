@@ -5,7 +5,8 @@ build passes that on, it tries it: a virtual sample at the position, the space p
 triangulated again, every rule run again. The position stands when its finding is gone and no
 other error or warning appeared; otherwise the nearest candidate around it that does (`_candidates`)
 takes its place; when none does, the finding says that no single clip helps and carries no
-suggestion. Necessary placeholders (the method's key clips, crossing points, straight versions)
+suggestion. The search is capped (`MAX_SIMULATIONS`, `BUDGET`); an unchecked position is never
+suggested. Necessary placeholders (the method's key clips, crossing points, straight versions)
 are the method's own answers and are never moved.
 
 For `uncovered-area` (one finding, several marks) "gone" means the covered share grows. A
@@ -22,7 +23,6 @@ from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
-from blendspace_pipeline.checks.locate_diagnostics import anchor
 from blendspace_pipeline.checks.rule_engine import run_rules
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
 from blendspace_pipeline.manifest.models import ClipEntry
@@ -32,12 +32,14 @@ from blendspace_pipeline.space.model import BlendSpace, MeasuredClip, assemble
 VIRTUAL = "(placeholder)"
 # Findings about a clip's own animation: not counted when only the virtual sample has them.
 _CLIP_LEVEL_OK = frozenset({"misalignment", "outside-axis-range"})
-MAX_TRIES = 24  # simulations per placeholder (each is a placement, triangulation and rule run)
-# Simulations cost about linearly in the number of samples: the budget is in sample-simulations
-# (simulations x samples), so a 13-clip set can try ~1,500 positions and a 1,000-clip set ~20.
-# Placeholders beyond it are passed on unchecked, and their finding says so. A count, not a
-# time, so that builds stay byte-identical.
-BUDGET = 20_000
+MAX_TRIES = 12  # simulations per placeholder (each is a placement, triangulation and rule run)
+# A simulation costs about 20 ms on a 13-clip set and grows with the samples, so the whole search
+# is capped: at most `MAX_SIMULATIONS` per space, and at most `BUDGET` sample-simulations
+# (simulations x samples: a 100-clip set gets 20, a 1,000-clip set 2). Placeholders beyond the
+# cap are not suggested (unchecked, they might add a finding), and their finding says so.
+# Counts, not times, so that builds stay byte-identical (numbers: benchmarks/bench_placeholders.py).
+MAX_SIMULATIONS = 96
+BUDGET = 2_000
 SEVERE = ("error", "warning")
 
 Key = tuple[object, ...]
@@ -52,7 +54,7 @@ def converge_placeholders(space: BlendSpace) -> None:
     before = _keys(space.diagnostics)
     coverage = _coverage(space)
     cache: dict[tuple[object, ...], tuple[set[Key], float]] = {}
-    budget = [BUDGET // max(len(space.samples), 1)]
+    budget = [min(MAX_SIMULATIONS, BUDGET // max(len(space.samples), 1))]
 
     def simulate(point: tuple[float, float], without: tuple[str, ...]) -> tuple[set[Key], float]:
         key = (round(point[0], 9), round(point[1], 9), *without)
@@ -79,10 +81,9 @@ def converge_placeholders(space: BlendSpace) -> None:
                 continue
             found = None
             if budget[0] <= 0:
-                marks.append(mark)
-                unchecked = True
+                unchecked = True  # never suggested unchecked: it might add a finding
                 continue
-            for point in _candidates(space, diagnostic, mark)[:MAX_TRIES]:
+            for point in _candidates(space, diagnostic, mark, without)[:MAX_TRIES]:
                 if budget[0] <= 0:
                     break
                 budget[0] -= 1
@@ -92,8 +93,7 @@ def converge_placeholders(space: BlendSpace) -> None:
                     found = point
                     break
             if found is None and budget[0] <= 0:
-                marks.append(mark)  # ran out of budget before an answer: passed on unchecked
-                unchecked = True
+                unchecked = True  # ran out of budget before an answer
             elif found is None:
                 lost += 1
             elif found == mark.position:
@@ -109,7 +109,7 @@ def converge_placeholders(space: BlendSpace) -> None:
             at = ", ".join(f"({p[0]:.3g}, {p[1]:.3g})" for p in moved)
             note = f"tried by simulation, a clip at {at} removes it without adding a finding"
         if unchecked:
-            extra = "placeholder not checked by simulation (the space is too large for its budget)"
+            extra = "its placeholder was not checked by simulation (budget spent), so none is suggested"
             note = f"{note}; {extra}" if note else extra
         if note:
             diagnostic = replace(diagnostic, hint=f"{diagnostic.hint}; {note}" if diagnostic.hint else note)
@@ -118,8 +118,13 @@ def converge_placeholders(space: BlendSpace) -> None:
     space.placeholders = _unique(p for d in changed for p in d.placeholders)
 
 
-def _candidates(space: BlendSpace, diagnostic: Diagnostic, mark: Placeholder) -> list[tuple[float, float]]:
+def _candidates(
+    space: BlendSpace, diagnostic: Diagnostic, mark: Placeholder, without: tuple[str, ...]
+) -> list[tuple[float, float]]:
     """The rule's position first, then positions around it nearest first (axis units).
+
+    Positions closer than `thresholds.too_close` to a sample that stays are left out without a
+    simulation: a clip there would add (or grow) a too-close finding, so it can never pass.
 
     For a sliver the points Delaunay refinement would try come first: its circumcentre is the
     rule's own proposal; its centroid and the middles of its edges follow. Then rings around the
@@ -154,7 +159,15 @@ def _candidates(space: BlendSpace, diagnostic: Diagnostic, mark: Placeholder) ->
             ring.append((origin[0] + radius * math.cos(angle), origin[1] + radius * math.sin(angle)))
     inside = [p for p in extra + ring if -1e-9 <= p[0] <= 100 + 1e-9 and -1e-9 <= p[1] <= 100 + 1e-9]
     inside.sort(key=lambda p: math.hypot(p[0] - origin[0], p[1] - origin[1]))
-    return [mark.position] + [to_axis(p) for p in inside]
+    staying = [to_norm(s.position) for s in space.samples if s.name not in without]
+
+    def free(p: tuple[float, float]) -> bool:
+        # Compared where the clip would be placed: snapped to the grid like any sample.
+        snapped = to_norm((space.axes[0].snap(p[0]), space.axes[1].snap(p[1])))
+        return all(math.hypot(snapped[0] - q[0], snapped[1] - q[1]) >= tau for q in staying)
+
+    points = [mark.position] + [to_axis(p) for p in inside]
+    return [p for p in points if free(p)]
 
 
 def _with_virtual(space: BlendSpace, point: tuple[float, float], without: tuple[str, ...] = ()) -> BlendSpace:
@@ -183,8 +196,7 @@ def _with_virtual(space: BlendSpace, point: tuple[float, float], without: tuple[
         sample.generated, sample.fix = flags.get(sample.name, (False, None))
     trial.layer_spaces = space.layer_spaces
     trial.rules = space.rules
-    run_rules(trial)
-    trial.diagnostics = anchor(trial, trial.diagnostics)
+    run_rules(trial)  # not anchored: a finding's identity (rule, clips, position) needs no line
     return trial
 
 
