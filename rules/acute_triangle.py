@@ -10,8 +10,9 @@ from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
 
 class AcuteTriangle(Rule):
-    """A triangle with an angle below `thresholds.acute_angle` (degrees, paper: 15), measured in
-    normalised axis space, is a sliver: a long edge, a tiny area, and blend weights that change
+    """A triangle with an angle below `thresholds.acute_angle` (degrees, strictly below; 15 is our
+    default: the paper names the problem but gives no number), measured in normalised axis space,
+    is a sliver: a long edge, a tiny area, and blend weights that change
     abruptly for small parameter changes (popping). The suggested placeholder is the triangle's
     circumcentre (the point Delaunay refinement inserts), or the middle of its longest edge when
     the circumcentre falls outside the axis rectangle.

@@ -13,9 +13,12 @@ class CrossingAxis(Rule):
     """A triangle edge crossing a main axis (speed = 0 or turning = 0, the lines through idle)
     blends opposite motions, forward with backward or left with right turns, which gives
     abnormal feet. Edges whose two ends both lie farther than `thresholds.crossing_axis`
-    (normalised units, paper: 5) from the axis they cross are reported. The cure is key clips on
-    the axes: idle, turn in place at ±half the turn range, and the fastest forward and backward
-    clips at zero turn. The automatic fix bakes an interpolated clip where the edge crosses.
+    (normalised units; τχ = 5 is the paper's value) from the axis they cross are reported (an
+    end exactly τχ away counts as on the axis). The cure is key clips on the axes, at the
+    extremes the authored set covers (paper §3.2a): idle, turn in place at ± the largest turn
+    rate any authored clip has, and the fastest forward and fastest backward authored speeds at
+    zero turn; never fixed fractions of the axis range. A key position counts as held when a
+    clip lies within τχ of it. The automatic fix bakes an interpolated clip where the edge crosses.
     """
 
     slug = "crossing-axis"
@@ -65,23 +68,7 @@ class CrossingAxis(Rule):
 
     def _missing_key_clips(self, space: SpaceView) -> Iterator[Diagnostic]:
         tau = space.thresholds["crossing_axis"]
-        x_axis, y_axis = space.axes
-        keys: list[tuple[tuple[float, float], str]] = []
-        if x_axis.minimum <= 0.0 <= x_axis.maximum and y_axis.minimum <= 0.0 <= y_axis.maximum:
-            keys.append(((0.0, 0.0), "idle"))
-            if x_axis.minimum < 0.0:
-                keys.append(
-                    ((x_axis.minimum / 2.0, 0.0), f"{x_axis.feature} {x_axis.minimum / 2:g} in place")
-                )
-            if x_axis.maximum > 0.0:
-                keys.append(
-                    ((x_axis.maximum / 2.0, 0.0), f"{x_axis.feature} {x_axis.maximum / 2:g} in place")
-                )
-            ys = [s.position[1] for s in space.samples]
-            if any(y > 0 for y in ys):
-                keys.append(((0.0, max(ys)), f"fastest {y_axis.feature} forward at {x_axis.feature} 0"))
-            if any(y < 0 for y in ys):
-                keys.append(((0.0, min(ys)), f"fastest {y_axis.feature} backward at {x_axis.feature} 0"))
+        keys = key_positions(space)
         for position, label in keys:
             target = space.to_normalised(position)
             if any(distance(s.normalised, target) <= tau for s in space.samples):
@@ -96,3 +83,38 @@ class CrossingAxis(Rule):
                 "author one or let mirroring/axis-clip fixes make it",
                 placeholders=[mark],
             )
+
+
+def key_positions(space: SpaceView) -> list[tuple[tuple[float, float], str]]:
+    """The key clips the method asks for, as (position in axis units, label).
+
+    They are the extremes the authored set covers on each main axis (generated clips do not
+    stretch the set: a mirror repeats an authored extreme): idle; turn in place at ± the largest
+    |x| of any authored clip; the fastest forward and the fastest backward authored y at x = 0
+    (placed positions: the grid points the engine holds). Turns in place are asked for only when
+    the set turns farther than τχ from the axis.
+    Only when both main axes cross the rectangle (otherwise there is no idle to anchor them).
+    """
+    x_axis, y_axis = space.axes
+    if not (x_axis.minimum <= 0.0 <= x_axis.maximum and y_axis.minimum <= 0.0 <= y_axis.maximum):
+        return []
+    authored = [s for s in space.samples if not s.generated] or list(space.samples)
+    keys: list[tuple[tuple[float, float], str]] = [((0.0, 0.0), "idle")]
+    reach = max((abs(s.position[0]) for s in authored), default=0.0)
+    tau = space.thresholds["crossing_axis"]
+    if reach > 0.0 and space.to_normalised((reach, 0.0))[0] - space.to_normalised((0.0, 0.0))[0] > tau:
+        for side in (-1.0, 1.0):
+            value = min(max(side * reach, x_axis.minimum), x_axis.maximum)
+            if value != 0.0:
+                keys.append(((value, 0.0), f"{x_axis.feature} {value:+.3g} in place (largest authored)"))
+    ys = [s.position[1] for s in authored]
+    top, bottom = max(ys, default=0.0), min(ys, default=0.0)
+    if top > 0.0:
+        keys.append(
+            ((0.0, min(top, y_axis.maximum)), f"fastest {y_axis.feature} forward at {x_axis.feature} 0")
+        )
+    if bottom < 0.0:
+        keys.append(
+            ((0.0, max(bottom, y_axis.minimum)), f"fastest {y_axis.feature} backward at {x_axis.feature} 0")
+        )
+    return keys

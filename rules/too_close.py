@@ -6,13 +6,16 @@ from collections.abc import Iterator
 
 from blendspace_pipeline.rules._geometry import distance
 
-from blendspace_pipeline.api import Diagnostic, Rule, SpaceView
+from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
 
 class TooClose(Rule):
-    """Samples closer than `thresholds.too_close` (normalised units, paper: 8) are grouped into
-    clusters; each cluster is one finding. Keep one representative (the clip nearest the cluster
-    centre) or replace the cluster by their interpolation (`fixes.too_close`).
+    """Samples closer than `thresholds.too_close` (normalised units; τd = 8 is the paper's value;
+    a pair exactly τd apart is not too close) are grouped into clusters (single linkage); each
+    cluster is one finding. Keep one representative (the clip nearest the cluster centre) or
+    replace the cluster by their interpolation (`fixes.too_close`). The suggested placeholder is
+    where the merged clip would go (the paper's green marker): the mean of the members' measured
+    positions. The fix never drops a key clip (on a main axis, or a hull corner).
     """
 
     slug = "too-close"
@@ -49,6 +52,8 @@ class TooClose(Rule):
             cx = sum(space.samples[i].position[0] for i in members) / len(members)
             cy = sum(space.samples[i].position[1] for i in members) / len(members)
             centre_n = space.to_normalised((cx, cy))
+            mx = sum(space.samples[i].measured[0] for i in members) / len(members)
+            my = sum(space.samples[i].measured[1] for i in members) / len(members)
             # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
             keep = min(
                 members,
@@ -65,4 +70,7 @@ class TooClose(Rule):
                 "(fixes.too_close: keep-representative | merge)",
                 fix="too-close",
                 fix_data={"keep": space.samples[keep].name, "centre": [cx, cy]},
+                placeholders=[
+                    placeholder(space, (mx, my), "suggested", self.slug, f"merge of {', '.join(names)}")
+                ],
             )

@@ -142,9 +142,13 @@ def test_builds_are_byte_identical_and_idempotent(tmp_path: Path, monkeypatch: p
 @pytest.mark.parametrize(
     ("specs", "fixes"),
     [
-        # walk_fwd and walk_relaxed are too close: merged (and then there is nothing to straighten).
+        # The two turning walks are too close and off the axes: merged.
         (
-            (*DRAFT, GaitSpec("walk_fwd", speed=1.4, turn_rate=4.0), GaitSpec("walk_relaxed", speed=1.5)),
+            (
+                *DRAFT,
+                GaitSpec("walk_turn_a", speed=1.4, turn_rate=25.0),
+                GaitSpec("walk_turn_b", speed=1.5, turn_rate=28.0),
+            ),
             "fixes: {too_close: merge, straighten: true}\n",
         ),
         # walk_fwd turns 4 deg/s: straightened.
@@ -166,7 +170,12 @@ def test_merge_and_straighten_are_idempotent(tmp_path: Path, specs: tuple[GaitSp
 
 
 def test_too_close_keep_representative_and_merge(tmp_path: Path) -> None:
-    specs = (*DRAFT, GaitSpec("walk_fwd", speed=1.4), GaitSpec("walk_relaxed", speed=1.5, stride_length=1.4))
+    # Off the main axes and inside the hull: neither is a key clip, so too-close may act on them.
+    specs = (
+        *DRAFT,
+        GaitSpec("walk_fwd", speed=1.4, turn_rate=25.0),
+        GaitSpec("walk_relaxed", speed=1.5, turn_rate=28.0, stride_length=1.4),
+    )
     keep = _build(
         _project(tmp_path / "k", specs, "fixes: {too_close: keep-representative}\n"), tmp_path / "k1"
     )

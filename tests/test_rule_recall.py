@@ -54,6 +54,7 @@ class RandomSpace:
     indices: dict[str, tuple[int, int]]
     thresholds: dict[str, float]
     view: SpaceView
+    measured: dict[str, tuple[float, float]]
 
     def zero_index(self, k: int) -> int | None:
         """Grid index of 0 on axis k (None when 0 is outside the range); all layouts keep 0 on the grid."""
@@ -123,7 +124,7 @@ def generate_space(number: int, rng: np.random.Generator) -> RandomSpace:
         "misalignment": float(rng.uniform(1.5, 5.0)),
     }
     view = space_from_positions(measured, axes=axes, thresholds=thresholds)
-    return RandomSpace(number, axes, indices, thresholds, view)
+    return RandomSpace(number, axes, indices, thresholds, view, measured)
 
 
 @pytest.fixture(scope="module")
@@ -163,7 +164,7 @@ def expected_crossings(space: RandomSpace) -> set[Key]:
     """Edges whose ends lie on opposite sides of x = 0 or y = 0, both farther than crossing_axis.
 
     When there is one, every key clip missing from the main axes is reported too: idle, the turns
-    in place at half of each side of the x range, and the fastest forward and backward samples
+    in place at plus and minus the largest |x| of the set, and the fastest forward and backward samples
     moved onto x = 0. A key clip counts as present when a sample is within crossing_axis of it.
     """
     tau = Fraction(space.thresholds["crossing_axis"])
@@ -181,10 +182,14 @@ def expected_crossings(space: RandomSpace) -> set[Key]:
         return found
     x_axis, y_axis = space.axes
     keys = [(Fraction(0), Fraction(0))]
-    if x_axis.minimum < 0:
-        keys.append((Fraction(x_axis.minimum) / 2, Fraction(0)))
-    if x_axis.maximum > 0:
-        keys.append((Fraction(x_axis.maximum) / 2, Fraction(0)))
+    # Turns in place at the largest turn the set has (not at half the range), when it turns
+    # farther than crossing_axis from the axis.
+    reach = max(abs(space.value(n, 0)) for n in names_of(space))
+    if reach / (Fraction(x_axis.maximum) - Fraction(x_axis.minimum)) * 100 > tau:
+        keys += [
+            (max(-reach, Fraction(x_axis.minimum)), Fraction(0)),
+            (min(reach, Fraction(x_axis.maximum)), Fraction(0)),
+        ]
     ys = [space.value(n, 1) for n in names_of(space)]
     if any(y > 0 for y in ys):
         keys.append((Fraction(0), max(ys)))
@@ -272,15 +277,18 @@ def actual_too_close(findings: list[Diagnostic]) -> set[Key]:
 
 
 def expected_misalignment(space: RandomSpace) -> set[Key]:
-    """Samples off a main axis (snapped coordinate not 0) but closer to it than misalignment."""
-    tau = Fraction(space.thresholds["misalignment"])
+    """Samples whose measured (unsnapped) position is off a main axis by more than noise (0.01)
+    and at most misalignment, in normalised units: snapping onto the axis hides nothing."""
+    tau = space.thresholds["misalignment"]
     found: set[Key] = set()
     for name in names_of(space):
         for k, axis_name in enumerate("xy"):
             line = space.line(k)
-            if line is None or space.indices[name][k] == space.zero_index(k):
+            if line is None:
                 continue
-            if abs(space.point(name)[k] - line) < tau:
+            axis = space.axes[k]
+            at = (space.measured[name][k] - axis.minimum) / (axis.maximum - axis.minimum) * 100
+            if 0.01 < abs(at - float(line)) <= tau:
                 found.add(("off-axis", name, axis_name))
     return found
 
@@ -313,25 +321,20 @@ def covered_percent(space: RandomSpace) -> Fraction:
 
 
 def expected_uncovered(space: RandomSpace) -> set[Key]:
-    """When less than the whole square is covered: one finding whose suggested placeholders are
-    the square's corners and edge midpoints that lie outside the hull (its boundary counts as in)."""
+    """When less than the whole square is covered: one finding."""
     if covered_percent(space) >= 100:
         return set()
-    hull = hull_of(space)
-
-    def inside(p: Exact) -> bool:
-        edges = zip(hull, hull[1:] + hull[:1], strict=True)
-        return len(hull) >= 3 and all(
-            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) >= 0 for a, b in edges
-        )
-
-    return {("uncovered", frozenset((float(c[0]), float(c[1])) for c in CANDIDATES if not inside(c)))}
+    return {("uncovered",)}
 
 
 def actual_uncovered(space: RandomSpace, findings: list[Diagnostic]) -> set[Key]:
-    """The findings' placeholders (normalised), after checking the covered percentage they print."""
+    """One key per finding, after checking the covered percentage it prints and that every
+    suggested placeholder is a reachable one: outside the hull, inside the rectangle and within
+    the extents of the set (never a bare corner of the rectangle the set does not reach)."""
     found: set[Key] = set()
     exact = covered_percent(space)
+    hull = hull_of(space)
+    names = names_of(space)
     for d in findings:
         match = re.search(r"cover (\d+\.\d)%", d.message)
         assert match, d.message
@@ -339,10 +342,21 @@ def actual_uncovered(space: RandomSpace, findings: list[Diagnostic]) -> set[Key]
         assert abs(Fraction(match[1]) - exact) <= Fraction(1, 20) + Fraction(1, 10**9), (
             f"{d.message}, but the exact share is {float(exact):.4f}% in {space.describe()}"
         )
-        marks = frozenset(
-            tuple(round(v, 6) + 0.0 for v in space.view.to_normalised(p.position)) for p in d.placeholders
-        )
-        found.add(("uncovered", marks))
+        for mark in d.placeholders:
+            p = space.view.to_normalised(mark.position)
+            assert -1e-9 <= p[0] <= 100 + 1e-9 and -1e-9 <= p[1] <= 100 + 1e-9, space.describe()
+            for k in (0, 1):
+                values = [space.measured[n][k] for n in names]
+                if space.axes[k].feature == "turn_rate":  # a body turns both ways as fast
+                    values += [-v for v in values]
+                assert min(values) - 1e-9 <= mark.position[k] <= max(values) + 1e-9, space.describe()
+            edges = zip(hull, hull[1:] + hull[:1], strict=True)
+            exact_p = (Fraction(p[0]), Fraction(p[1]))
+            assert len(hull) < 3 or any(
+                (b[0] - a[0]) * (exact_p[1] - a[1]) - (b[1] - a[1]) * (exact_p[0] - a[0]) < 0
+                for a, b in edges
+            ), f"{mark.position} is inside the hull in {space.describe()}"
+        found.add(("uncovered",))
     return found
 
 

@@ -45,7 +45,9 @@ def test_crossing_axis_bad_case_exact() -> None:
     assert crossings[0].fix == "axis-clip"
     assert crossings[0].placeholders[0].priority == "necessary"
     keys = sorted(p.position for f in findings if not f.clips for p in f.placeholders)
-    assert keys == [(-90.0, 0.0), (0.0, 1.4), (90.0, 0.0)]
+    # Turn in place at the largest authored turn rate (60, on its grid point 61.2), not at half
+    # the axis range (90).
+    assert keys == [pytest.approx(k, abs=1e-6) for k in [(-61.2, 0.0), (0.0, 1.4), (61.2, 0.0)]]
 
 
 def test_crossing_axis_good_case_is_silent() -> None:
@@ -87,11 +89,22 @@ def test_misalignment_near_axis_and_expect() -> None:
     )
 
 
-def test_misalignment_below_half_a_grid_step_is_on_axis() -> None:
-    # 1 deg/s snaps to 0 on a 3.6 deg/s grid: it is on the axis for the engine.
-    assert (
-        run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (1.0, 4.0), "x": (90, 2)})) == []
-    )
+def test_misalignment_uses_measured_offsets() -> None:
+    # 1 deg/s snaps to 0 on a 3.6 deg/s grid, but the clip still turns: reported on its measured
+    # offset (the old rule compared the snapped one and was silent).
+    findings = run_rule(Misalignment, space_from_positions({"idle": (0, 0), "run": (1.0, 4.0), "x": (90, 2)}))
+    assert [f.clips for f in findings] == [("run",)]
+    assert "+1 deg/s" in findings[0].message
+    # A -5 deg/s drift (1.39 normalised) is reported; the old `>=` on the snapped offset missed it.
+    drift = run_rule(Misalignment, space_from_positions({"idle": (0, 0), "walk": (-5.0, 1.4), "x": (90, 2)}))
+    assert [f.clips for f in drift] == [("walk",)] and "-5 deg/s" in drift[0].message
+    assert drift[0].placeholders[0].position == (0.0, 1.4)
+    # The edge is inclusive: exactly tau (3 normalised = 10.8 deg/s) is reported, just beyond is not.
+    edge = {"idle": (0, 0), "x": (90, 2)}
+    assert len(run_rule(Misalignment, space_from_positions({**edge, "w": (10.8, 1.4)}))) == 1
+    assert run_rule(Misalignment, space_from_positions({**edge, "w": (10.9, 1.4)})) == []
+    # Measurement noise (below 0.01 normalised = 0.036 deg/s) is not a turn.
+    assert run_rule(Misalignment, space_from_positions({**edge, "w": (0.03, 1.4)})) == []
 
 
 def test_too_close_clusters() -> None:
@@ -111,8 +124,28 @@ def test_uncovered_area_reports_percentage() -> None:
     half = {"a": (-180, -3), "b": (180, -3), "c": (180, 6)}
     findings = run_rule(UncoveredArea, space_from_positions(half))
     assert "50.0%" in findings[0].message
-    assert [p.position for p in findings[0].placeholders] == [(-180.0, 6.0), (0.0, 6.0), (-180.0, 1.5)]
+    # Only what a body can do: turning in place as fast as the set does (180), and at 6 m/s no
+    # more than 7 m/s^2 / 6 m/s = 66.8 deg/s; never the bare corner (-180, 6).
+    marks = [p.position for p in findings[0].placeholders]
+    assert marks == [pytest.approx(m, abs=0.05) for m in [(-180.0, 0.0), (-66.85, 6.0), (66.85, 6.0)]]
+    assert "narrow" not in findings[0].message
     assert covered_fraction([(0, 0), (100, 0), (100, 100)]) == pytest.approx(0.5)
+
+
+def test_uncovered_area_says_to_narrow_axes_wider_than_a_body_can_do() -> None:
+    walks = {
+        "idle": (0, 0),
+        "walk": (0, 1.4),
+        "left": (45, 1.4),
+        "right": (-45, 1.4),
+        "tip_l": (90, 0),
+        "tip_r": (-90, 0),
+        "back": (0, -1.0),
+    }
+    [finding] = run_rule(UncoveredArea, space_from_positions(walks))
+    assert "narrow turn_rate to [-90, 90], speed to [-1, 1.4]" in finding.message
+    for mark in finding.placeholders:  # never at the rectangle's corners (+-180, 6) or (+-180, -3)
+        assert -90 <= mark.position[0] <= 90 and -1.0 <= mark.position[1] <= 1.4
 
 
 def test_clip_level_rules() -> None:

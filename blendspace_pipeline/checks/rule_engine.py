@@ -47,12 +47,12 @@ ENGINE_CODES = {
     "plugin-error": "BS900",
     "unused-suppression": "BS901",
     "rule-crashed": "BS902",
-    "unknown-rule": "BS906",  # BS903/BS904: fix_loop; BS905: invalid-input (commands)
+    "unknown-rule": "BS906",  # BS903/BS904/BS907: fix_loop; BS905: invalid-input (commands)
 }
 _WARNINGS = {"unused-suppression", "unknown-rule"}
 # The engine's own findings (here, in fix_loop and in the commands) own these names: a plugin rule
 # taking one would make `ignore:` and the reports ambiguous.
-RESERVED_SLUGS = frozenset(ENGINE_CODES) | {"fix-skipped", "fix-removed", "invalid-input"}
+RESERVED_SLUGS = frozenset(ENGINE_CODES) | {"fix-skipped", "fix-removed", "fix-rejected", "invalid-input"}
 RESERVED_CODE_PREFIX = "BS9"
 
 

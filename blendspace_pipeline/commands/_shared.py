@@ -58,6 +58,13 @@ ENGINE_RULES: dict[str, RuleInfo] = {
         "A fix (e.g. too-close: keep-representative or merge) took a clip out of the blend space.",
         "info",
     ),
+    "fix-rejected": RuleInfo(
+        "BS907",
+        "a fix that would have made the space worse, and why it was not applied",
+        "The build tried the fix, analysed the space again and kept it only if the findings improved "
+        "(fewer errors, then fewer warnings, then more coverage) and no authored key clip was lost.",
+        "info",
+    ),
     INVALID_INPUT: RuleInfo(
         INVALID_INPUT_CODE,
         "a manifest or one of its clips cannot be read or is invalid",

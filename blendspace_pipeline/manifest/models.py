@@ -241,16 +241,23 @@ class Thresholds(_Model):
 
     crossing_axis: NonNegativeFloat = Field(
         default=5.0,
-        description="τχ: how far beyond a main axis an edge's end points may lie before it counts.",
+        description="τχ: how far beyond a main axis an edge's end points may lie before it counts "
+        "(the paper's value, Delicado & Pelechano 2019).",
     )
     too_close: NonNegativeFloat = Field(
-        default=8.0, description="τd: samples closer than this are too close."
+        default=8.0,
+        description="τd: samples closer than this are too close (the paper's value, Delicado & Pelechano 2019).",
     )
     acute_angle: NonNegativeFloat = Field(
-        default=15.0, description="Triangles with an angle below this (deg) are acute."
+        default=15.0,
+        description="Triangles with an angle below this (deg) are acute. Our default, not the paper's "
+        "(it gives no number): a 15° sliver has a long edge about 4x its height.",
     )
     misalignment: NonNegativeFloat = Field(
-        default=3.0, description="A clip this close to a main axis (or its expect) but off it is misaligned."
+        default=3.0,
+        description="A clip whose measured position is off a main axis by at most this much is misaligned. "
+        "Our default, not the paper's (it gives no number): below τχ, so a misaligned clip still "
+        "counts as on the axis for crossing-axis.",
     )
 
 

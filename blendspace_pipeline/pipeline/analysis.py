@@ -15,14 +15,24 @@ from blendspace_pipeline.manifest import load_manifest
 from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.pipeline.layers import analyse_layers
 from blendspace_pipeline.pipeline.measure_stage import measure_files
+from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.space.model import BlendSpace, assemble
 
 
 def analyse(
-    manifest_path: Path, *, jobs: int = 1, progress: Progress | None = None, with_layers: bool = True
+    manifest_path: Path,
+    *,
+    jobs: int = 1,
+    progress: Progress | None = None,
+    with_layers: bool = True,
+    converge: bool = True,
 ) -> BlendSpace:
-    """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules."""
+    """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules.
+
+    ``converge``: check the suggested placeholders by simulation (`placeholders`); `build` leaves
+    it to the end of the fix loop, whose last space is the one it reports.
+    """
     loaded = load_manifest(manifest_path)
     files = resolve_clip_files(loaded)
     clips = measure_files(loaded, files, jobs=jobs, progress=progress)
@@ -30,10 +40,12 @@ def analyse(
     if with_layers:
 
         def analyse_beta(path: Path) -> BlendSpace:
-            return analyse(path, jobs=jobs, progress=progress, with_layers=False)
+            return analyse(path, jobs=jobs, progress=progress, with_layers=False, converge=converge)
 
         space.layer_spaces = analyse_layers(space, analyse_beta, jobs=jobs, progress=progress)
     finish_analysis(space)
+    if converge:
+        converge_placeholders(space)
     return space
 
 

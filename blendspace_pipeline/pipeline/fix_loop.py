@@ -1,15 +1,22 @@
 """The fix loop: check → bake new clips → re-measure, re-place, re-triangulate → check again.
 
-Rules only describe fixes (`Diagnostic.fix` and `fix_data`); this module applies them, one kind
-per round in a fixed order (mirror, then axis clips, then too-close, then straighten) because
-each kind changes the triangulation the next one looks at. Every generated clip is real
-animation made by `clip_ops` from the source clips and measured like any other clip, so it lands
-where its features put it, not where the fix wished it to be. Sources are never modified: new
+Rules only describe fixes (`Diagnostic.fix` and `fix_data`); this module applies them, kind by
+kind in a fixed order (mirror, then axis clips, then too-close, then straighten) because each
+kind changes the triangulation the next one looks at. Every generated clip is real animation
+made by `clip_ops` from the source clips and measured like any other clip, so it lands where its
+features put it, not where the fix wished it to be. Sources are never modified or deleted: new
 clips live in memory until the build writes them under ``clips/`` in its output.
 
-The loop is bounded (`MAX_ROUNDS`) and deterministic (fixes are applied in sorted order, names are
-derived from the sources), and it is idempotent: a set that already holds the clips a fix would
-make triggers no fix.
+The loop is monotone: each fix is tried on its own, the space analysed again, and the fix kept
+only if the findings improve in this order (`score`): fewer errors; else as many errors and fewer
+warnings; else as many of both and a larger covered share of the axis rectangle. A fix that
+would drop an authored key clip (`key_clips`: on a main axis, or a corner of the convex hull) is
+never kept, whatever the counts. A fix not kept is an info finding `fix-rejected` saying why.
+
+The loop is bounded (`MAX_ROUNDS`, each fix tried once) and deterministic (fixes are tried in
+sorted order, names are derived from the sources), and it is idempotent: a clip of an earlier
+build fed back as a source is recognised by the provenance in its file
+(`readers.provenance`), never by where it sits, and a set that already holds it triggers no fix.
 """
 
 from __future__ import annotations
@@ -30,13 +37,18 @@ from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
+from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.readers.provenance import Provenance, read_provenance
 from blendspace_pipeline.space.geometry import normalise
+from blendspace_pipeline.space.hull import convex_hull, hull_coverage
 from blendspace_pipeline.space.model import BlendSpace, MeasuredClip, Sample, assemble
 
 MAX_ROUNDS = 6
-# Fix kinds in the order they are applied; one kind per round.
+# Fix kinds in the order they are applied.
 ORDER = ("mirror", "axis-clip", "too-close", "straighten")
+# At most this many fixes are tried in one build (each costs a re-analysis of the space).
+MAX_ATTEMPTS = 64
 
 
 @dataclass
@@ -50,6 +62,7 @@ class GeneratedClip:
     line: int  # manifest entry of the first source, where its diagnostics point
     column: int
     measured: MeasuredClip | None = None
+    weights: tuple[float, ...] = ()  # one per source (a mirror or straighten: (1.0,))
 
 
 @dataclass
@@ -59,25 +72,87 @@ class FixState:
     generated: dict[str, GeneratedClip] = field(default_factory=dict)
     removed: dict[str, str] = field(default_factory=dict)  # sample name -> why
     skipped: list[Diagnostic] = field(default_factory=list)
+    rejected: list[Diagnostic] = field(default_factory=list)  # fix-rejected findings
 
 
 def apply_fixes(space: BlendSpace) -> tuple[BlendSpace, FixState]:
-    """Apply the manifest's `fixes:` until nothing fixable is left (or `MAX_ROUNDS`)."""
+    """Apply the manifest's `fixes:` one at a time, keeping each only if it improves the space."""
     state = FixState()
     fixer = _Fixer(space, state)
+    tried: set[tuple[object, ...]] = set()
+    attempts = 0
     for _ in range(MAX_ROUNDS):
-        kind = next((k for k in ORDER if fixer.wanted(space, k)), None)
-        if kind is None:
+        progress = False
+        for kind in ORDER:
+            if not fixer.enabled(kind):
+                continue
+            while attempts < MAX_ATTEMPTS:
+                diagnostic = next(
+                    (d for d in fixer.todo(space, kind) if _attempt_key(kind, d) not in tried), None
+                )
+                if diagnostic is None:
+                    break
+                tried.add(_attempt_key(kind, diagnostic))
+                attempts += 1
+                space, kept = fixer.attempt(space, kind, diagnostic)
+                progress |= kept
+        if not progress:
             break
-        changed = fixer.apply(space, kind)
-        if not changed:
-            fixer.exhausted.add(kind)
-            continue
-        space = fixer.rebuild(space)
+    converge_placeholders(space)
     space.diagnostics = sorted(
-        space.diagnostics + state.skipped + _removals(space, fixer), key=Diagnostic.sort_key
+        space.diagnostics + state.skipped + state.rejected + _removals(space, fixer), key=Diagnostic.sort_key
     )
     return space, state
+
+
+def _attempt_key(kind: str, diagnostic: Diagnostic) -> tuple[object, ...]:
+    position = None if diagnostic.position is None else tuple(round(v, 6) for v in diagnostic.position)
+    return (kind, diagnostic.rule, tuple(sorted(diagnostic.clips)), position)
+
+
+Score = tuple[int, int, float]
+
+
+def score(space: BlendSpace) -> Score:
+    """The order fixes must improve, smaller is better: errors, then warnings, then coverage.
+
+    Coverage is the share of the axis rectangle inside the hull of the samples (negated, so
+    that more is better). The fix loop's own info findings are not counted.
+    """
+    errors = sum(d.severity == "error" for d in space.diagnostics)
+    warnings = sum(d.severity == "warning" for d in space.diagnostics)
+    points = [(float(x), float(y)) for x, y in space.normalised_positions()]
+    return errors, warnings, -round(hull_coverage(points), 6)
+
+
+def key_clips(space: BlendSpace) -> dict[str, str]:
+    """Authored clips no fix may lose, with why: on a main axis, or a corner of the hull.
+
+    "On a main axis" means the clip's measured (unsnapped) position lies within
+    `thresholds.crossing_axis` (normalised units; the paper's τχ = 5) of the line speed = 0 or
+    turning = 0: the band crossing-axis already treats as on the axis. A hull corner is a vertex
+    of the convex hull of all samples (placed positions): dropping it shrinks the coverage.
+    """
+    tau = space.manifest.model.thresholds.crossing_axis
+    lines = []
+    for index, axis in enumerate(space.axes):
+        if axis.minimum <= 0.0 <= axis.maximum:
+            lines.append((index, (0.0 - axis.minimum) / (axis.maximum - axis.minimum) * 100.0))
+    found: dict[str, str] = {}
+    normalised = space.normalised_positions()
+    corners = set(convex_hull([(float(x), float(y)) for x, y in normalised]))
+    for sample, placed in zip(space.samples, normalised, strict=True):
+        if sample.generated or sample.clip.extra.get("generated"):
+            continue
+        measured = _normalise(space, sample.measured)
+        for index, line in lines:
+            if abs(measured[index] - line) <= tau:
+                found[sample.name] = f"on the {space.axes[index].feature} = 0 axis"
+                break
+        else:
+            if (float(placed[0]), float(placed[1])) in corners:
+                found[sample.name] = "a corner of the covered area"
+    return found
 
 
 def _removals(space: BlendSpace, fixer: _Fixer) -> list[Diagnostic]:
@@ -111,7 +186,10 @@ class _Fixer:
         self.settings: RigSettings = rig_settings(self.model.skeleton)
         self.sources = {s.name: s.clip for s in space.samples}
         self.clips: dict[str, Clip] = {}
-        self.exhausted: set[str] = set()
+        self._provenance: dict[str, Provenance | None] = {}
+        # Key clips of the authored set: a clip of an earlier build (it says so in its file) is
+        # not authored, and may go when the fix that made it is made again.
+        self.keys = {n: why for n, why in key_clips(space).items() if self.provenance(n) is None}
 
     # -- which fixes are on ---------------------------------------------------------------------
     def enabled(self, kind: str) -> bool:
@@ -123,11 +201,10 @@ class _Fixer:
             "straighten": fixes.straighten,
         }[kind]
 
-    def wanted(self, space: BlendSpace, kind: str) -> bool:
-        return (
-            kind not in self.exhausted
-            and self.enabled(kind)
-            and any(self._kind_of(d) == kind for d in space.diagnostics)
+    def todo(self, space: BlendSpace, kind: str) -> list[Diagnostic]:
+        """The findings of ``space`` that fix ``kind`` acts on, in a fixed order."""
+        return sorted(
+            (d for d in space.diagnostics if self._kind_of(d) == kind), key=lambda d: (d.clips, d.message)
         )
 
     @staticmethod
@@ -139,24 +216,59 @@ class _Fixer:
         return diagnostic.fix if diagnostic.fix in ("mirror", "axis-clip") else None
 
     # -- applying -------------------------------------------------------------------------------
-    def apply(self, space: BlendSpace, kind: str) -> bool:
-        todo = sorted(
-            (d for d in space.diagnostics if self._kind_of(d) == kind), key=lambda d: (d.clips, d.message)
+    def attempt(self, space: BlendSpace, kind: str, diagnostic: Diagnostic) -> tuple[BlendSpace, bool]:
+        """Try one fix; keep it (return the new space, True) only if the space gets better."""
+        generated, removed = dict(self.state.generated), dict(self.state.removed)
+        try:
+            changed = bool(getattr(self, "_" + kind.replace("-", "_"))(space, diagnostic))
+        except IncompatibleClips as why:
+            self._skip(diagnostic, f"cannot {kind}: {why}")
+            changed = False
+        except _Refused as why:
+            self._reject(diagnostic, kind, str(why))
+            changed = False
+        if not changed:
+            self.state.generated, self.state.removed = generated, removed
+            return space, False
+        candidate = self.rebuild(space)
+        why_not = self._worse(space, candidate)
+        if why_not is None:
+            return candidate, True
+        self.state.generated, self.state.removed = generated, removed
+        self._reject(diagnostic, kind, why_not)
+        return space, False
+
+    def _worse(self, before: BlendSpace, after: BlendSpace) -> str | None:
+        """Why ``after`` is not better than ``before`` (see `score`), or None when it is."""
+        present = {s.name for s in after.samples}
+        # A key clip straightened stays at its key position, as its straight version (made now,
+        # or by an earlier build and fed back as a source).
+        replaced = {
+            g.sources[0]
+            for g in self.state.generated.values()
+            if g.rule == "misalignment" and g.clip.name in present
+        }
+        for name in present:
+            record = self.provenance(name) if name in self.sources else None
+            if record is not None and record.rule == "misalignment":
+                replaced.add(record.sources[0])
+        lost = sorted(n for n in self.keys if n not in present and n not in replaced)
+        if lost:
+            return f"it would drop {self._why_key(lost)}"
+        old, new = score(before), score(after)
+        if new < old:
+            return None
+        return (
+            f"the space would not get better: errors {old[0]} → {new[0]}, warnings {old[1]} → {new[1]}, "
+            f"coverage {-old[2] * 100:.1f}% → {-new[2] * 100:.1f}%"
         )
-        changed = False
-        for diagnostic in todo:
-            try:
-                changed |= getattr(self, "_" + kind.replace("-", "_"))(space, diagnostic)
-            except IncompatibleClips as why:
-                self._skip(diagnostic, f"cannot {kind}: {why}")
-        return changed
 
     def _mirror(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         data = diagnostic.fix_data or {}
         source = str(data["source"])
         name = self._unique(mirrored_name(source))
         clip = mirror_clip(self._clip(source), settings=self.settings, name=name, pairs=self._pairs(source))
-        return self._add(clip, "missing-opposite", (source,), f"mirror of {source}")
+        return self._add(clip, "missing-opposite", (source,), f"mirror of {source}", (1.0,))
 
     def _axis_clip(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         data = diagnostic.fix_data or {}
@@ -181,31 +293,41 @@ class _Fixer:
             [self._clip(a.name), self._clip(b.name)], weights, name=name, settings=self.settings
         )
         note = f"{weights[0]:.3f} x {a.name} + {weights[1]:.3f} x {b.name}"
-        return self._add(clip, "crossing-axis", (a.name, b.name), note)
+        return self._add(clip, "crossing-axis", (a.name, b.name), note, weights)
 
     def _too_close(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         data = diagnostic.fix_data or {}
         members = [n for n in diagnostic.clips if n not in self.state.removed]
         if len(members) < 2:
             return False
+        earlier = self._earlier_fix(members, "too-close")
+        if earlier is not None:  # a fixed build's merged clip fed back as a source: keep it
+            done, sources = earlier
+            for name in sources:
+                self.state.removed[name] = f"too-close: {done} already merges it"
+            return True
+        # Key clips stay whatever the fix: the others are merged or dropped around them.
+        kept = [n for n in members if n in self.keys]
+        loose = [n for n in members if n not in self.keys]
         if self.model.fixes.too_close == "keep-representative":
-            keep = str(data["keep"])
-            for name in members:
-                if name != keep:
-                    self.state.removed[name] = f"too-close: {keep} kept as the representative"
+            keep = kept[0] if kept else str(data.get("keep", members[0]))
+            if keep not in members:
+                keep = members[0]
+            dropped = [n for n in members if n != keep and n not in kept]
+            if not dropped:
+                raise _Refused(f"{self._why_key(kept)}; too-close never drops a key clip")
+            for name in dropped:
+                self.state.removed[name] = f"too-close: {keep} kept as the representative"
             return True
-        done = self._earlier_merge(space, members)
-        if done is not None:  # a fixed build's merged clip fed back as a source: keep it
-            for name in members:
-                if name != done:
-                    self.state.removed[name] = f"too-close: {done} already merges it"
-            return True
-        name = self._unique(_safe("merged_" + "_".join(sorted(members))))
-        clips = [self._clip(n) for n in sorted(members)]
-        clip = blend_clips(clips, [1.0 / len(clips)] * len(clips), name=name, settings=self.settings)
-        for member in members:
+        if len(loose) < 2:
+            raise _Refused(f"{self._why_key(kept)}; too-close never merges a key clip away")
+        name = self._unique(_safe("merged_" + "_".join(sorted(loose))))
+        clips = [self._clip(n) for n in sorted(loose)]
+        weights = [1.0 / len(clips)] * len(clips)
+        clip = blend_clips(clips, weights, name=name, settings=self.settings)
+        for member in loose:
             self.state.removed[member] = f"too-close: merged into {name}"
-        return self._add(clip, "too-close", tuple(sorted(members)), "equal-weight merge")
+        return self._add(clip, "too-close", tuple(sorted(loose)), "equal-weight merge", tuple(weights))
 
     def _straighten(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         source = diagnostic.clips[0]
@@ -213,14 +335,14 @@ class _Fixer:
         # little); otherwise feeding them back as sources would straighten them a build later.
         if source in self.state.removed:
             return False
-        on_axis = self._straight_twin(space, diagnostic)
-        if on_axis is not None:  # a fixed build's straightened clip fed back as a source
-            self.state.removed[source] = f"misalignment: {on_axis} already sits on the axis in its place"
+        earlier = self._earlier_fix([s.name for s in space.samples], "misalignment", source)
+        if earlier is not None:  # a fixed build's straightened clip fed back as a source
+            self.state.removed[source] = f"misalignment: {earlier[0]} already is its straight version"
             return True
         name = self._unique(_safe(f"{source}_straight"))
         clip = straighten_clip(self._clip(source), settings=self.settings, name=name)
         self.state.removed[source] = f"misalignment: replaced by {name}"
-        return self._add(clip, "misalignment", (source,), "turn removed")
+        return self._add(clip, "misalignment", (source,), "turn removed", (1.0,))
 
     # -- helpers --------------------------------------------------------------------------------
     def _clip(self, name: str) -> Clip:
@@ -258,36 +380,31 @@ class _Fixer:
     # Idempotence: building again with a fixed build's generated clips among the sources must add
     # nothing. Mirror and axis clips cure their own diagnostic; a merge or a straightened clip
     # does not (the originals are back beside it), so these two fixes first look for a sample
-    # that already is their result: one that sits, within `SAME_PLACE`, where the fix would put
-    # its clip. Files do not say they were generated (BVH cannot), so place is the evidence.
-    SAME_PLACE = 1.5  # normalised units: snapping (half a cell) plus a blend's small error
+    # whose file says it is their result. Only the file's provenance counts: an authored clip
+    # that happens to sit where a merge would land is an authored clip.
+    def provenance(self, name: str) -> Provenance | None:
+        """The provenance record in sample ``name``'s file (None: authored, or made in this build)."""
+        if name not in self._provenance:
+            origin = self.sources.get(name)
+            self._provenance[name] = read_provenance(origin.source) if origin is not None else None
+        return self._provenance[name]
 
-    def _earlier_merge(self, space: BlendSpace, members: list[str]) -> str | None:
-        """A member that sits at the centre of the others: the merge of an earlier build."""
-        if len(members) < 3:
-            return None
-        at = {s.name: _normalise(space, s.measured) for s in space.samples}
-        for name in sorted(members):
-            others = [at[m] for m in members if m != name]
-            centre = (sum(p[0] for p in others) / len(others), sum(p[1] for p in others) / len(others))
-            if _distance(at[name], centre) < self.SAME_PLACE:
-                return name
-        return None
-
-    def _straight_twin(self, space: BlendSpace, diagnostic: Diagnostic) -> str | None:
-        """Another sample on the axis where straightening ``diagnostic``'s clip would put it."""
-        source = diagnostic.clips[0]
-        axis = 0 if (diagnostic.fix_data or {}).get("axis", "x") == "x" else 1
-        by_name = {s.name: s for s in space.samples}
-        if source not in by_name:
-            return None
-        target = list(by_name[source].measured)
-        target[axis] = 0.0
-        for sample in space.samples:
-            if sample.name == source or sample.name in self.state.removed or sample.position[axis] != 0.0:
+    def _earlier_fix(
+        self, candidates: Sequence[str], rule: str, source: str | None = None
+    ) -> tuple[str, tuple[str, ...]] | None:
+        """A sample among ``candidates`` that an earlier build's ``rule`` fix made from samples
+        still in the space (from ``source`` alone, when given), with those sources."""
+        present = {n for n in self.sources if n not in self.state.removed}
+        for name in sorted(candidates):
+            record = self.provenance(name)
+            if record is None or record.rule != rule or name in self.state.removed:
                 continue
-            if _distance(_normalise(space, sample.measured), _normalise(space, target)) < self.SAME_PLACE:
-                return sample.name
+            sources = tuple(n for n in record.sources if n in present and n != name)
+            if source is not None:
+                if record.sources == (source,):
+                    return name, (source,)
+            elif sources and all(n in candidates for n in sources):
+                return name, sources
         return None
 
     def _unique(self, name: str) -> str:
@@ -298,7 +415,9 @@ class _Fixer:
             candidate = f"{name}_{counter}"
         return candidate
 
-    def _add(self, clip: Clip, rule: str, sources: tuple[str, ...], note: str) -> bool:
+    def _add(
+        self, clip: Clip, rule: str, sources: tuple[str, ...], note: str, weights: tuple[float, ...]
+    ) -> bool:
         clip.notes.append(f"generated by the {rule} fix: {note}")
         first = sources[0]
         origin = self.sources.get(first)
@@ -307,7 +426,9 @@ class _Fixer:
             if origin is not None
             else (self.state.generated[first].line, self.state.generated[first].column)
         )
-        self.state.generated[clip.name] = GeneratedClip(clip, rule, sources, note, line, column)
+        self.state.generated[clip.name] = GeneratedClip(
+            clip, rule, sources, note, line, column, weights=tuple(float(w) for w in weights)
+        )
         return True
 
     def _skip(self, diagnostic: Diagnostic, why: str) -> None:
@@ -320,6 +441,27 @@ class _Fixer:
                 clips=diagnostic.clips,
                 position=diagnostic.position,
                 hint="author the clip at the placeholder instead",
+                path=diagnostic.path,
+                line=diagnostic.line,
+                column=diagnostic.column,
+            )
+        )
+
+    def _why_key(self, names: Sequence[str]) -> str:
+        listed = ", ".join(f"{n} ({self.keys[n]})" for n in names)
+        return f"{listed} {'is a key clip' if len(names) == 1 else 'are key clips'} of the authored set"
+
+    def _reject(self, diagnostic: Diagnostic, kind: str, why: str) -> None:
+        self.state.rejected.append(
+            Diagnostic(
+                rule="fix-rejected",
+                code="BS907",
+                severity="info",
+                message=f"{kind} fix for {diagnostic.rule} not applied: {why}",
+                clips=diagnostic.clips,
+                position=diagnostic.position,
+                hint="the build keeps a fix only if the space gets better; "
+                "author a clip at the placeholder, or set the fix to `report`",
                 path=diagnostic.path,
                 line=diagnostic.line,
                 column=diagnostic.column,
@@ -360,6 +502,10 @@ class _Fixer:
                 extra={"generated": True},
             )
         return generated.measured
+
+
+class _Refused(Exception):
+    """A fix that must not be made (it would lose a key clip): becomes a fix-rejected finding."""
 
 
 def _normalise(space: BlendSpace, point: Sequence[float]) -> tuple[float, float]:

@@ -5,14 +5,17 @@ not say theirs), so it opens at the right size in any USD tool. The GLB (metres,
 animation named after the clip) is what Godot imports natively, Unreal through Interchange and
 Unity through glTFast. When every source of the set is BVH, the clip is also written as BVH with
 the source's own hierarchy header and channel layout, so it drops into the same pipeline as the
-clips it came from. The manifest's ``output.clip_formats`` narrows the list.
+clips it came from. The manifest's ``output.clip_formats`` narrows the list. Every file carries
+the clip's provenance (`readers.provenance`): how the next build knows it for a generated clip.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from blendspace_pipeline import __version__
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
+from blendspace_pipeline.readers.provenance import Provenance
 from blendspace_pipeline.space.model import BlendSpace
 from blendspace_pipeline.writers.gltf import write_gltf_clip
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
@@ -56,6 +59,18 @@ def bvh_template(space: BlendSpace, generated: GeneratedClip) -> Path | None:
     return sources[0]
 
 
+def provenance_of(generated: GeneratedClip) -> Provenance:
+    """The record written into every file of ``generated``: rule, sources, weights, tool version."""
+    return Provenance(
+        rule=generated.rule,
+        sources=generated.sources,
+        weights=generated.weights,
+        tool="blendspace-pipeline",
+        version=__version__,
+        note=generated.note,
+    )
+
+
 def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Path) -> list[Path]:
     """Write ``generated`` into ``folder``; returns the files written."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -64,17 +79,18 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
     units = measured.measurement.meters_per_unit if measured else clip.meters_per_unit
     up = measured.measurement.up_axis if measured else clip.up_axis
     formats = clip_formats(space)
+    record = provenance_of(generated)
     written: list[Path] = []
     if "usd" in formats or source_suffix(space) == CLIP_SUFFIXES["usd"]:
         written.append(folder / f"{clip.name}.usda")
-        write_usd_clip(clip, written[-1], meters_per_unit=units, up_axis=up)
+        write_usd_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     if "glb" in formats:
         written.append(folder / f"{clip.name}.glb")
-        write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up)
+        write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     template = bvh_template(space, generated) if "bvh" in formats else None
     if template is not None:
         from blendspace_pipeline.writers.bvh import write_bvh_clip
 
         written.append(folder / f"{clip.name}.bvh")
-        write_bvh_clip(clip, written[-1], template=template)
+        write_bvh_clip(clip, written[-1], template=template, provenance=record)
     return written

@@ -169,7 +169,8 @@ def build(
     progress: Progress | None = None,
     fix: bool = True,
 ) -> BuildResult:
-    space = analyse(manifest, jobs=jobs, progress=progress)
+    # With fixes on, placeholders are checked on the space the fix loop leaves (`apply_fixes`).
+    space = analyse(manifest, jobs=jobs, progress=progress, converge=not fix)
     fixes = FixState()
     layer_fixes: dict[str, FixState] = {}
     if fix:

@@ -25,6 +25,7 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.provenance import strip_bvh_provenance
 
 SUFFIXES = (".bvh",)
 _POSITION = {"xposition": 0, "yposition": 1, "zposition": 2}
@@ -62,7 +63,8 @@ class BvhHeader:
 
 
 def read(path: Path) -> list[Clip]:
-    text = _text(path)
+    # A generated clip's provenance is a comment after the last frame; it is not motion data.
+    text = strip_bvh_provenance(_text(path))
     # Split only the header into lines; the MOTION numbers go to numpy as one string.
     header, head_end = _split_header(text, path)
     data_start = text.count("\n", 0, head_end) + 1  # the 1-based line that `data` begins on

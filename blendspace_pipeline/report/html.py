@@ -97,6 +97,7 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
             _section(
                 "diagnostics", "Diagnostics", tables.diagnostic_filters(doc) + tables.diagnostics_table(doc)
             ),
+            _refused_section(doc),
             _section("placeholders", "Clips to add", _placeholder_intro() + tables.placeholders_table(doc)),
             _coverage_section(doc, scene),
             _trajectory_section(doc, scene, trajectory),
@@ -212,6 +213,26 @@ def _placeholder_intro() -> str:
         '<p class="note">Author clips with these measurements (or accept the generated ones) and rebuild. '
         '<span class="prio necessary">necessary</span> clips fix a problem; '
         '<span class="prio suggested">suggested</span> ones extend coverage or quality.</p>'
+    )
+
+
+def _refused_section(doc: BlendSpaceDocument) -> str:
+    """The fixes the build tried and did not keep, and why: what it refused to do to the space."""
+    refused = [d for d in doc.diagnostics if d.rule in ("fix-rejected", "fix-skipped")]
+    if not refused:
+        return ""
+    rows = "".join(
+        f"<tr><td>{escape(d.rule)}</td><td>{escape(', '.join(d.clips))}</td><td>{escape(d.message)}</td></tr>"
+        for d in refused
+    )
+    return _section(
+        "refused",
+        "Fixes not applied",
+        "<p>The build keeps a fix only if the space gets better (fewer errors, then fewer warnings, then "
+        "more coverage) and no authored key clip (on a main axis, or a corner of the covered area) is lost. "
+        "These fixes were tried and left out:</p>"
+        f'<table class="refused"><thead><tr><th>finding</th><th>clips</th><th>why</th></tr></thead>'
+        f"<tbody>{rows}</tbody></table>",
     )
 
 

@@ -23,14 +23,17 @@ from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.readers.bvh import BvhHeader, BvhJoint, read_header
+from blendspace_pipeline.readers.provenance import Provenance, bvh_line
 
 _SIX = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
 _ROTATION_ONLY = ("Zrotation", "Xrotation", "Yrotation")
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
 
-def write_bvh_clip(clip: Clip, path: Path, *, template: Path | None = None) -> None:
-    """Write ``clip`` to ``path`` atomically.
+def write_bvh_clip(
+    clip: Clip, path: Path, *, template: Path | None = None, provenance: Provenance | None = None
+) -> None:
+    """Write ``clip`` to ``path`` atomically; ``provenance`` becomes a comment after the frames.
 
     Raises ValueError when the clip cannot be written faithfully: its joints are not the
     template's, a joint moves but has no position channels in the template, or a value is NaN.
@@ -45,6 +48,8 @@ def write_bvh_clip(clip: Clip, path: Path, *, template: Path | None = None) -> N
         header, verbatim = _default_header(clip), None
     hierarchy = _fit_offsets(clip, header, verbatim)
     text = hierarchy + _motion(clip, header)
+    if provenance is not None:
+        text += bvh_line(provenance)
     temporary = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
     try:
         temporary.write_text(text, encoding="utf-8", newline="\n")

@@ -25,6 +25,7 @@ import numpy as np
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.provenance import GLTF_KEY, Provenance
 from blendspace_pipeline.report.atomic import atomic_path
 
 SUFFIXES = (".glb", ".gltf")
@@ -34,9 +35,16 @@ _GENERATOR = "blendspace-pipeline"
 
 
 def write_gltf_clip(
-    clip: Clip, path: Path, *, meters_per_unit: float | None = None, up_axis: str | None = None
+    clip: Clip,
+    path: Path,
+    *,
+    meters_per_unit: float | None = None,
+    up_axis: str | None = None,
+    provenance: Provenance | None = None,
 ) -> None:
     """Write ``clip`` to ``path`` atomically; ``meters_per_unit``/``up_axis`` override the clip's.
+
+    ``provenance`` (a generated clip's record) goes into the animation's ``extras``.
 
     Raises `ValueError` when the units or up axis are unknown: glTF has no field for them, so a
     wrong guess would silently scale or tip the character over.
@@ -52,6 +60,8 @@ def write_gltf_clip(
         raise ValueError(f"{path}: a glTF clip is written as .glb or .gltf")
     rest_t, rest_r, translations, rotations = _metres_y_up(clip, float(units), up)
     document, blob = _document(clip, rest_t, rest_r, translations, rotations)
+    if provenance is not None:
+        document["animations"][0]["extras"] = {GLTF_KEY: provenance.as_dict()}
     if suffix == ".glb":
         data = _glb(document, blob)
     else:

@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.provenance import USD_KEY, Provenance
 
 SUFFIXES = (".usd", ".usda", ".usdc")
 # customData key path (nested dictionary ``blendspace_pipeline = {hasHierarchy = false}``) on the
@@ -33,9 +34,16 @@ FLAT_SKELETON_KEY = "blendspace_pipeline:hasHierarchy"
 
 
 def write_usd_clip(
-    clip: Clip, path: Path, *, meters_per_unit: float | None = None, up_axis: str | None = None
+    clip: Clip,
+    path: Path,
+    *,
+    meters_per_unit: float | None = None,
+    up_axis: str | None = None,
+    provenance: Provenance | None = None,
 ) -> None:
     """Write ``clip`` to ``path`` atomically; ``meters_per_unit``/``up_axis`` override the clip's.
+
+    ``provenance`` (a generated clip's record) goes into the default prim's ``customData``.
 
     Raises `ValueError` when the units or up axis are unknown: USD's fallbacks (centimetres,
     Y up) would silently mislabel a metre-scale or Z-up clip, so the caller must decide.
@@ -53,6 +61,11 @@ def write_usd_clip(
     _write_metadata(stage, clip, units, up)
     root = UsdSkel.Root.Define(stage, Sdf.Path.absoluteRootPath.AppendChild(_identifier(clip.name)))
     stage.SetDefaultPrim(root.GetPrim())
+    if provenance is not None:
+        record = provenance.as_dict()
+        record["sources"] = Vt.StringArray(record["sources"])
+        record["weights"] = Vt.DoubleArray(record["weights"])
+        root.GetPrim().SetCustomDataByKey(USD_KEY, record)
     joints = joint_paths(clip.skeleton)
     skeleton = _write_skeleton(stage, root.GetPath().AppendChild("Skeleton"), clip.skeleton, joints)
     animation = _write_animation(stage, skeleton.GetPath().AppendChild(_identifier(clip.name)), clip, joints)

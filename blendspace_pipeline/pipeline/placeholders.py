@@ -1,0 +1,234 @@
+"""Placeholders that converge: a suggested clip position is kept only if a clip there helps.
+
+A rule proposes where a new clip would cure its finding (the paper's green markers). Before the
+build passes that on, it tries it: a virtual sample at the position, the space placed and
+triangulated again, every rule run again. The position stands when its finding is gone and no
+other error or warning appeared; otherwise the nearest candidate around it that does (`_candidates`)
+takes its place; when none does, the finding says that no single clip helps and carries no
+suggestion. The search is capped (`MAX_SIMULATIONS`, `BUDGET`); an unchecked position is never
+suggested. Necessary placeholders (the method's key clips, crossing points, straight versions)
+are the method's own answers and are never moved.
+
+For `uncovered-area` (one finding, several marks) "gone" means the covered share grows. A
+`too-close` marker is where the cluster's merge would go: its simulation takes the members out.
+
+A virtual sample has no animation: what rules say about its animation alone (a missing mirrored
+opposite, an in-place clip, its cadence) is not counted against it; where it sits is.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from blendspace_pipeline.checks.rule_engine import run_rules
+from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
+from blendspace_pipeline.manifest.models import ClipEntry
+from blendspace_pipeline.space.hull import hull_coverage
+from blendspace_pipeline.space.model import BlendSpace, MeasuredClip, assemble
+
+VIRTUAL = "(placeholder)"
+# Findings about a clip's own animation: not counted when only the virtual sample has them.
+_CLIP_LEVEL_OK = frozenset({"misalignment", "outside-axis-range"})
+MAX_TRIES = 12  # simulations per placeholder (each is a placement, triangulation and rule run)
+# A simulation costs about 20 ms on a 13-clip set and grows with the samples, so the whole search
+# is capped: at most `MAX_SIMULATIONS` per space, and at most `BUDGET` sample-simulations
+# (simulations x samples: a 100-clip set gets 20, a 1,000-clip set 2). Placeholders beyond the
+# cap are not suggested (unchecked, they might add a finding), and their finding says so.
+# Counts, not times, so that builds stay byte-identical (numbers: benchmarks/bench_placeholders.py).
+MAX_SIMULATIONS = 96
+BUDGET = 2_000
+SEVERE = ("error", "warning")
+
+Key = tuple[object, ...]
+
+
+def converge_placeholders(space: BlendSpace) -> None:
+    """Check every suggested placeholder of ``space`` by simulation; move or drop the bad ones."""
+    if len(space.samples) < 3 or not any(
+        p.priority == "suggested" for d in space.diagnostics for p in d.placeholders
+    ):
+        return
+    before = _keys(space.diagnostics)
+    coverage = _coverage(space)
+    cache: dict[tuple[object, ...], tuple[set[Key], float]] = {}
+    budget = [min(MAX_SIMULATIONS, BUDGET // max(len(space.samples), 1))]
+
+    def simulate(point: tuple[float, float], without: tuple[str, ...]) -> tuple[set[Key], float]:
+        key = (round(point[0], 9), round(point[1], 9), *without)
+        if key not in cache:
+            trial = _with_virtual(space, point, without)
+            cache[key] = (_keys(trial.diagnostics, virtual=True), _coverage(trial))
+        return cache[key]
+
+    changed: list[Diagnostic] = []
+    for diagnostic in space.diagnostics:
+        if not any(p.priority == "suggested" for p in diagnostic.placeholders):
+            changed.append(diagnostic)
+            continue
+        own = _key(diagnostic)
+        # A too-close marker is where the cluster's merge would go: it replaces the members.
+        without = diagnostic.clips if diagnostic.rule == "too-close" else ()
+        marks: list[Placeholder] = []
+        lost = 0
+        moved: list[tuple[float, float]] = []
+        unchecked = False
+        for mark in diagnostic.placeholders:
+            if mark.priority != "suggested":
+                marks.append(mark)
+                continue
+            found = None
+            if budget[0] <= 0:
+                unchecked = True  # never suggested unchecked: it might add a finding
+                continue
+            for point in _candidates(space, diagnostic, mark, without)[:MAX_TRIES]:
+                if budget[0] <= 0:
+                    break
+                budget[0] -= 1
+                after, covered = simulate(point, without)
+                cured = covered > coverage + 1e-9 if diagnostic.rule == "uncovered-area" else own not in after
+                if cured and not (after - before):
+                    found = point
+                    break
+            if found is None and budget[0] <= 0:
+                unchecked = True  # ran out of budget before an answer
+            elif found is None:
+                lost += 1
+            elif found == mark.position:
+                marks.append(mark)
+            else:
+                features = {space.axes[0].feature: float(found[0]), space.axes[1].feature: float(found[1])}
+                marks.append(replace(mark, position=found, features=features))
+                moved.append(found)
+        note = ""
+        if lost and not any(m.priority == "suggested" for m in marks):
+            note = "no single added clip removes this finding without adding another"
+        elif moved:
+            at = ", ".join(f"({p[0]:.3g}, {p[1]:.3g})" for p in moved)
+            note = f"tried by simulation, a clip at {at} removes it without adding a finding"
+        if unchecked:
+            extra = "its placeholder was not checked by simulation (budget spent), so none is suggested"
+            note = f"{note}; {extra}" if note else extra
+        if note:
+            diagnostic = replace(diagnostic, hint=f"{diagnostic.hint}; {note}" if diagnostic.hint else note)
+        changed.append(replace(diagnostic, placeholders=tuple(_unique(marks))))
+    space.diagnostics = changed
+    space.placeholders = _unique(p for d in changed for p in d.placeholders)
+
+
+def _candidates(
+    space: BlendSpace, diagnostic: Diagnostic, mark: Placeholder, without: tuple[str, ...]
+) -> list[tuple[float, float]]:
+    """The rule's position first, then positions around it nearest first (axis units).
+
+    Positions closer than `thresholds.too_close` to a sample that stays are left out without a
+    simulation: a clip there would add (or grow) a too-close finding, so it can never pass.
+
+    For a sliver the points Delaunay refinement would try come first: its circumcentre is the
+    rule's own proposal; its centroid and the middles of its edges follow. Then rings around the
+    proposal at half, one and two `thresholds.too_close` (the distance a new clip must keep).
+    """
+    ranges = space.axis_ranges()
+    spans = (ranges[0].maximum - ranges[0].minimum, ranges[1].maximum - ranges[1].minimum)
+
+    def to_norm(p: Sequence[float]) -> tuple[float, float]:
+        return (
+            (p[0] - ranges[0].minimum) / spans[0] * 100.0,
+            (p[1] - ranges[1].minimum) / spans[1] * 100.0,
+        )
+
+    def to_axis(n: Sequence[float]) -> tuple[float, float]:
+        return (n[0] / 100.0 * spans[0] + ranges[0].minimum, n[1] / 100.0 * spans[1] + ranges[1].minimum)
+
+    origin = to_norm(mark.position)
+    extra: list[tuple[float, float]] = []
+    by_name = {s.name: s for s in space.samples}
+    corners = [to_norm(by_name[n].position) for n in diagnostic.clips if n in by_name]
+    if diagnostic.rule == "acute-triangle" and len(corners) == 3:
+        extra.append((sum(c[0] for c in corners) / 3, sum(c[1] for c in corners) / 3))
+        for i in range(3):
+            a, b = corners[i], corners[(i + 1) % 3]
+            extra.append(((a[0] + b[0]) / 2, (a[1] + b[1]) / 2))
+    tau = space.manifest.model.thresholds.too_close
+    ring = []
+    for radius in (tau / 2, tau, 2 * tau):
+        for step in range(8):
+            angle = step * math.pi / 4
+            ring.append((origin[0] + radius * math.cos(angle), origin[1] + radius * math.sin(angle)))
+    inside = [p for p in extra + ring if -1e-9 <= p[0] <= 100 + 1e-9 and -1e-9 <= p[1] <= 100 + 1e-9]
+    inside.sort(key=lambda p: math.hypot(p[0] - origin[0], p[1] - origin[1]))
+    staying = [to_norm(s.position) for s in space.samples if s.name not in without]
+
+    def free(p: tuple[float, float]) -> bool:
+        # Compared where the clip would be placed: snapped to the grid like any sample.
+        snapped = to_norm((space.axes[0].snap(p[0]), space.axes[1].snap(p[1])))
+        return all(math.hypot(snapped[0] - q[0], snapped[1] - q[1]) >= tau for q in staying)
+
+    points = [mark.position] + [to_axis(p) for p in inside]
+    return [p for p in points if free(p)]
+
+
+def _with_virtual(space: BlendSpace, point: tuple[float, float], without: tuple[str, ...] = ()) -> BlendSpace:
+    """``space`` with one more sample, measured exactly at ``point`` (and the samples ``without``
+    taken out), analysed again."""
+    nearest = min(
+        space.samples, key=lambda s: (s.position[0] - point[0]) ** 2 + (s.position[1] - point[1]) ** 2
+    )
+    features = dict(nearest.clip.measurement.features)
+    features[space.axes[0].feature] = float(point[0])
+    features[space.axes[1].feature] = float(point[1])
+    measurement = replace(nearest.clip.measurement, features=features, in_place=False, notes=[])
+    virtual = MeasuredClip(
+        VIRTUAL,
+        Path(VIRTUAL),
+        ClipEntry(path=VIRTUAL),
+        nearest.clip.line,
+        nearest.clip.column,
+        measurement,
+        extra={"virtual": True},
+    )
+    kept = [s.clip for s in space.samples if s.name not in without]
+    trial = assemble(space.manifest, [*kept, virtual])
+    flags = {s.name: (s.generated, s.fix) for s in space.samples}
+    for sample in trial.samples:
+        sample.generated, sample.fix = flags.get(sample.name, (False, None))
+    trial.layer_spaces = space.layer_spaces
+    trial.rules = space.rules
+    run_rules(trial)  # not anchored: a finding's identity (rule, clips, position) needs no line
+    return trial
+
+
+def _key(diagnostic: Diagnostic) -> Key:
+    if diagnostic.clips:
+        return (diagnostic.rule, frozenset(diagnostic.clips))
+    position = None if diagnostic.position is None else tuple(round(v, 6) for v in diagnostic.position)
+    return (diagnostic.rule, position)
+
+
+def _keys(diagnostics: Iterable[Diagnostic], *, virtual: bool = False) -> set[Key]:
+    """Identities of the errors and warnings (not counting what is said of the virtual clip alone)."""
+    found = set()
+    for d in diagnostics:
+        if d.severity not in SEVERE:
+            continue
+        if virtual and d.clips == (VIRTUAL,) and d.rule not in _CLIP_LEVEL_OK:
+            continue
+        found.add(_key(d))
+    return found
+
+
+def _coverage(space: BlendSpace) -> float:
+    return hull_coverage([(float(x), float(y)) for x, y in space.normalised_positions()])
+
+
+def _unique(marks: Iterable[Placeholder]) -> list[Placeholder]:
+    seen: set[tuple[tuple[float, float], str]] = set()
+    out = []
+    for mark in marks:
+        key = ((round(mark.position[0], 6), round(mark.position[1], 6)), mark.priority)
+        if key not in seen:
+            seen.add(key)
+            out.append(mark)
+    return out
