@@ -179,7 +179,17 @@ def _with_virtual(space: BlendSpace, point: tuple[float, float], without: tuple[
     features = dict(nearest.clip.measurement.features)
     features[space.axes[0].feature] = float(point[0])
     features[space.axes[1].feature] = float(point[1])
-    measurement = replace(nearest.clip.measurement, features=features, in_place=False, notes=[])
+    # The clip an author will make there has a cadence and foot timing of its own: the virtual one
+    # borrows none, so gait rules (cadence-mismatch, foot-phase-mismatch) do not judge a guess.
+    measurement = replace(
+        nearest.clip.measurement,
+        features=features,
+        in_place=False,
+        notes=[],
+        gait_period=None,
+        contacts=None,
+        plant_phases=None,
+    )
     virtual = MeasuredClip(
         VIRTUAL,
         Path(VIRTUAL),
