@@ -96,8 +96,9 @@ def test_blending_planted_walks_keeps_feet_planted() -> None:
     # The root does what the blend promises: re-planting only turns the legs.
     loose_features = measure(loose, SETTINGS).features
     planted_features = measure(planted, SETTINGS).features
+    # (1e-4, not exact: the measurement times the pelvis sway by the feet, which re-planting moves.)
     for feature in ("speed", "turn_rate"):
-        assert planted_features[feature] == pytest.approx(loose_features[feature], rel=1e-6, abs=1e-6)
+        assert planted_features[feature] == pytest.approx(loose_features[feature], rel=1e-4, abs=1e-4)
 
 
 @pytest.mark.parametrize(
