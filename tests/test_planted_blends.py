@@ -96,9 +96,13 @@ def test_blending_planted_walks_keeps_feet_planted() -> None:
     # The root does what the blend promises: re-planting only turns the legs.
     loose_features = measure(loose, SETTINGS).features
     planted_features = measure(planted, SETTINGS).features
-    # (1e-4, not exact: the measurement times the pelvis sway by the feet, which re-planting moves.)
+    loose_root, planted_root = forward_kinematics(loose), forward_kinematics(planted)
+    assert np.abs(planted_root[1][:, 0] - loose_root[1][:, 0]).max() < 1e-9  # the hips do not move
+    assert np.abs(planted_root[0][:, 0] - loose_root[0][:, 0]).max() < 1e-9
+    # The measured features agree closely, not exactly: the measurement times the pelvis sway by
+    # the feet (motion/clip_ops/sway.py), and re-planting moves the feet.
     for feature in ("speed", "turn_rate"):
-        assert planted_features[feature] == pytest.approx(loose_features[feature], rel=1e-4, abs=1e-4)
+        assert planted_features[feature] == pytest.approx(loose_features[feature], rel=5e-3, abs=1e-3)
 
 
 @pytest.mark.parametrize(
