@@ -231,3 +231,41 @@ def test_bvh_sources_get_bvh_generated_clips_with_the_same_motion(tmp_path: Path
         source_header = (folder / "idle.bvh").read_text().split("MOTION")[0]
         assert bvh_path.read_text().split("MOTION")[0] == source_header
         assert np.abs(forward_kinematics(usd)[1] - forward_kinematics(bvh)[1]).max() < 1e-3
+
+
+def test_a_fix_from_a_minus_y_up_source_is_skipped_not_a_crash(tmp_path: Path) -> None:
+    """Measurement reads any up axis (issue 10); the clip operations make +Y/+Z up clips only, so
+    a fix whose source is upside down (-Y up) is a `fix-skipped` finding, never an exit 3."""
+    from blendspace_pipeline.motion import quaternions as quat
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    flip = np.array([1.0, 0.0, 0.0, 0.0])  # 180 degrees about X: +Y up becomes -Y up
+    for spec in (
+        GaitSpec("walk_left", speed=1.4, turn_rate=40.0, duration=2.0),
+        GaitSpec("idle", duration=2.0),
+    ):
+        clip = generate(spec)
+        rotations, translations = clip.rotations.copy(), clip.translations.copy()
+        rotations[:, 0] = quat.multiply(np.broadcast_to(flip, rotations[:, 0].shape), rotations[:, 0])
+        translations[:, 0] = translations[:, 0] * np.array([1.0, -1.0, -1.0])
+        upside_down = type(clip)(
+            name=clip.name,
+            source=clip.source,
+            skeleton=clip.skeleton,
+            rotations=rotations,
+            translations=translations,
+            fps=clip.fps,
+        )
+        write_bvh_clip(upside_down, folder / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nskeleton: {units: m}\nclips:\n  - path: clips/*.bvh\n" + AXES
+    )
+    doc = _build(manifest, tmp_path / "out")
+    walk = next(s for s in doc["samples"] if s["name"] == "walk_left")  # type: ignore[attr-defined]
+    assert walk["clip"]["up_axis"] == "-y"
+    assert walk["features"]["turn_rate"] == pytest.approx(40.0, abs=1.0)
+    skipped = [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]
+    assert any("-y-up" in d["message"] for d in skipped), skipped

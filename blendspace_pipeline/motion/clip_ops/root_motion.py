@@ -17,6 +17,7 @@ import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.detect import RigSettings, resolve_facing, resolve_root, resolve_up
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -58,6 +59,12 @@ def root_joints(clip: Clip) -> tuple[int, ...]:
 def decompose(clip: Clip, settings: RigSettings) -> RootMotion:
     world_rot, world_pos = forward_kinematics(clip)
     up_axis, _ = resolve_up(clip, world_pos, settings)
+    if up_axis not in ("y", "z"):
+        # Measurement reads any up axis; the clip operations and the clip writers work in +Y or +Z
+        # up files (what DCCs and engines write). Refused as a skipped fix, not a crash.
+        raise IncompatibleClips(
+            f"{clip.name!r} is {up_axis}-up; generated clips are made from +Y or +Z up sources only"
+        )
     basis = ground_basis(up_axis)
     root = resolve_root(clip, settings)
     facing = resolve_facing(clip, settings, up_axis)
