@@ -33,12 +33,12 @@ class TooClose(Rule):
             return i
 
         closest: dict[int, float] = {}
-        for i in range(count):
-            for j in range(i + 1, count):
-                d = distance(space.samples[i].normalised, space.samples[j].normalised)
-                if d < tau:
-                    parent[root(j)] = root(i)
-                    closest[root(i)] = min(closest.get(root(i), d), d)
+        # Candidate pairs from a k-d tree, in the order the all-pairs loop visited them.
+        for i, j in space.close_pairs(tau).tolist():
+            d = distance(space.samples[i].normalised, space.samples[j].normalised)
+            if d < tau:
+                parent[root(j)] = root(i)
+                closest[root(i)] = min(closest.get(root(i), d), d)
         clusters: dict[int, list[int]] = {}
         for i in range(count):
             clusters.setdefault(root(i), []).append(i)
