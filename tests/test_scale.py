@@ -105,3 +105,28 @@ def test_too_close_on_10000_samples_finds_planted_pairs() -> None:
     assert sorted(sorted(d.clips) for d in found) == sorted(
         sorted([f"l{k:05d}", f"twin_{k:05d}"]) for k in planted
     )
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_triangle_locator_gives_locate_s_answers(seed: int) -> None:
+    """Bucketed location equals testing every triangle in order: same triangle (the first that
+    holds the point, so shared edges and vertices agree too), same weights, same misses."""
+    from blendspace_pipeline.space.geometry import TriangleLocator, _locate_each
+    from blendspace_pipeline.space.triangulate import triangulate
+
+    rng = np.random.default_rng(seed)
+    vertices = np.round(rng.uniform(0, 100, size=(400, 2)) / 2.5) * 2.5  # duplicates and collinear runs
+    triangles = np.array(triangulate(vertices).triangles)
+    queries = [rng.uniform(-10, 110, size=(3000, 2)), vertices]
+    corners = vertices[triangles]
+    queries.append((corners[:, 0] + corners[:, 1]) / 2)  # midpoints of shared edges
+    points = np.concatenate(queries)
+    want_found, want_weights = _locate_each(points, vertices, triangles)
+    found, weights = TriangleLocator(vertices, triangles).locate(points)
+    assert (found == want_found).all()
+    assert np.allclose(weights, want_weights, atol=1e-12, equal_nan=True)
+    # A hand-made, non-Delaunay triangulation (a square cut along the other diagonal) too.
+    square = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
+    cut = np.array([[0, 1, 3], [1, 2, 3]])
+    grid = np.stack(np.meshgrid(np.linspace(-5, 105, 23), np.linspace(-5, 105, 23)), -1).reshape(-1, 2)
+    assert (TriangleLocator(square, cut).locate(grid)[0] == _locate_each(grid, square, cut)[0]).all()

@@ -45,6 +45,7 @@ from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.space.document import BlendSpaceDocument, SampleDoc
 from blendspace_pipeline.space.geometry import (
     AxisRange,
+    TriangleLocator,
     blend_weights,
     hull_edges,
     normalise,
@@ -427,7 +428,6 @@ def _rate(sample: SampleDoc | StyleSampleDoc, length: float | None, blended: flo
 
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
-_INSIDE_TOLERANCE = 1e-9  # as `geometry.locate`: a query this far outside a triangle is on its edge
 _EPS = 1e-9
 _ZERO_WEIGHT = 1e-12  # as `geometry._pairs`: smaller weights are dropped
 
@@ -443,8 +443,7 @@ class _Clip:
 
 class _Space:
     """A 2D space (main or beta) ready for batch location: normalised vertices, its triangles
-    and, when scipy's Delaunay of the same vertices has exactly these triangles, the map from
-    scipy's simplices to them (else every triangle is tested, still vectorised)."""
+    and their `TriangleLocator`, and the hull edges queries outside it go to."""
 
     def __init__(self, doc: BlendSpaceDocument, samples: Sequence[SampleDoc], triangles: list[list[int]]):
         self.samples = list(samples)
@@ -452,70 +451,11 @@ class _Space:
             np.array([s.position for s in samples], dtype=np.float64).reshape(-1, 2), _axis_ranges(doc)
         )
         self.triangles = np.array(triangles, dtype=np.int64).reshape(-1, 3)
-        self.delaunay: Any = None
-        self.simplex_to_triangle: IntArray | None = None
         if len(self.triangles):
-            self._index()
-            corners = self.vertices[self.triangles]  # (T, 3, 2)
-            self.origin = corners[:, 0]
-            self.edge_b = corners[:, 1] - corners[:, 0]
-            self.edge_c = corners[:, 2] - corners[:, 0]
-            self.den = self.edge_b[:, 0] * self.edge_c[:, 1] - self.edge_c[:, 0] * self.edge_b[:, 1]
+            self.locator = TriangleLocator(self.vertices, self.triangles)
             edges = np.array(hull_edges(self.triangles), dtype=np.int64).reshape(-1, 2)
             self.hull_a, self.hull_b = self.vertices[edges[:, 0]], self.vertices[edges[:, 1]]
             self.hull_edges = edges
-
-    def _index(self) -> None:
-        from scipy.spatial import Delaunay  # local import: scipy loads only when a batch evaluates
-
-        used = np.unique(self.triangles)
-        try:
-            mesh = Delaunay(self.vertices[used])
-        except Exception:  # Qhull refuses some hand-edited layouts: test every triangle instead
-            return
-        ours = {tuple(sorted(map(int, tri))): index for index, tri in enumerate(self.triangles)}
-        mapping = np.full(len(mesh.simplices), -1, dtype=np.int64)
-        for index, simplex in enumerate(mesh.simplices):
-            found = ours.get(tuple(sorted(int(used[i]) for i in simplex)))
-            if found is None:
-                return  # a different triangulation (hand-edited document): no shortcut
-            mapping[index] = found
-        if len(mapping) == len(ours):
-            self.delaunay, self.simplex_to_triangle = mesh, mapping
-
-    def _barycentric(self, points: FloatArray, tris: IntArray) -> FloatArray:
-        offset = points - self.origin[tris]
-        eb, ec, den = self.edge_b[tris], self.edge_c[tris], self.den[tris]
-        safe = np.where(np.abs(den) < _EPS, 1.0, den)
-        wb = (offset[:, 0] * ec[:, 1] - ec[:, 0] * offset[:, 1]) / safe
-        wc = (eb[:, 0] * offset[:, 1] - offset[:, 0] * eb[:, 1]) / safe
-        weights = np.stack([1.0 - wb - wc, wb, wc], axis=-1)
-        weights[np.abs(den) < _EPS] = np.nan
-        return weights
-
-    def _locate(self, points: FloatArray) -> tuple[IntArray, FloatArray]:
-        """Containing triangle (-1: none) and barycentric weights of every point."""
-        found = np.full(len(points), -1, dtype=np.int64)
-        weights = np.full((len(points), 3), np.nan)
-        if self.simplex_to_triangle is not None:
-            simplex = np.asarray(self.delaunay.find_simplex(points), dtype=np.int64)
-            rows = np.flatnonzero(simplex >= 0)
-            found[rows] = self.simplex_to_triangle[simplex[rows]]
-        else:  # the document's own triangles in order: the first that holds the point, as `locate`
-            for index in range(len(self.triangles)):
-                pending = np.flatnonzero(found < 0)
-                if not len(pending):
-                    break
-                w = self._barycentric(points[pending], np.full(len(pending), index))
-                inside = np.all(w >= -_INSIDE_TOLERANCE, axis=1)
-                found[pending[inside]] = index
-        rows = np.flatnonzero(found >= 0)
-        w = self._barycentric(points[rows], found[rows])
-        inside = np.all(w >= -_INSIDE_TOLERANCE, axis=1)
-        found[rows[~inside]] = -1  # find_simplex's own tolerance: outside ours goes to the hull
-        rows = rows[inside]
-        weights[rows] = np.clip(w[inside], 0.0, None)
-        return found, weights
 
     def weights(self, points: FloatArray) -> tuple[IntArray, FloatArray, BoolArray]:
         """(sample indices (Q, 3), weights (Q, 3), outside (Q,)) at normalised ``points``; unused
@@ -531,7 +471,7 @@ class _Space:
                     indices[row, column], weights[row, column] = index, weight
                 outside[row] = moved
             return indices, weights, outside
-        found, bary = self._locate(points)
+        found, bary = self.locator.locate(points)
         rows = np.flatnonzero(found >= 0)
         # Columns in sample order, as `geometry._pairs` lists them (equal weights then sort alike).
         corner_order = np.argsort(self.triangles[found[rows]], axis=1)
