@@ -219,6 +219,25 @@ class SpaceView:
         pairs = pairs[np.hypot(difference[:, 0], difference[:, 1]) < radius]  # strictly closer
         return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
+    def close_groups(self, radius: float) -> list[list[int]]:
+        """Groups of two or more samples linked by chains of `close_pairs` (connected components),
+        each as sorted sample indices, ordered by their first index."""
+        pairs = self.close_pairs(radius)
+        if not len(pairs):
+            return []
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        count = len(self.samples)
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(count, count))
+        _, labels = connected_components(graph, directed=False)
+        sizes = np.bincount(labels)
+        groups: dict[int, list[int]] = {}
+        for index, label in enumerate(labels.tolist()):
+            if sizes[label] > 1:
+                groups.setdefault(label, []).append(index)
+        return list(groups.values())
+
 
 class RuleOptions(BaseModel):
     """Base of a rule's typed options: unknown keys are errors, values are read-only.
