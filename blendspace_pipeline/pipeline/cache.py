@@ -14,10 +14,12 @@ import os
 import tempfile
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.motion.measure import Measurement
+
+if TYPE_CHECKING:  # numpy and the measurement code load only when an entry is read
+    from blendspace_pipeline.motion.measure import Measurement
 
 
 def cache_dir() -> Path | None:
@@ -48,6 +50,8 @@ def load(key: str) -> list[tuple[str, Measurement]] | None:
     folder = cache_dir()
     if folder is None:
         return None
+    from blendspace_pipeline.motion.measure import Measurement
+
     try:
         entries: list[dict[str, Any]] = json.loads((folder / f"{key}.json").read_text(encoding="utf-8"))
         return [(entry["name"], Measurement(**entry["measurement"])) for entry in entries]

@@ -12,7 +12,6 @@ from pathlib import Path
 
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
 from blendspace_pipeline.space.model import BlendSpace
-from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 
 def bvh_template(space: BlendSpace, generated: GeneratedClip) -> Path | None:
@@ -29,6 +28,8 @@ def bvh_template(space: BlendSpace, generated: GeneratedClip) -> Path | None:
 
 def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Path) -> list[Path]:
     """Write ``generated`` into ``folder``; returns the files written."""
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip  # pxr loads only when a fix writes
+
     folder.mkdir(parents=True, exist_ok=True)
     clip = generated.clip
     measured = generated.measured
