@@ -24,9 +24,12 @@ Layers apply in document order; a layer with no value (or 0) does not take part.
 (`Evaluation.to_json`), an entry's ``layer`` is null for the main space, else the name of the
 layer where the graph first reached the clip; ``layers`` reports each layer's value, share of
 the total weight, whether it clamped the query, and its per-joint mask.
-`evaluate_many` does the same for an array of queries at once (scipy's Delaunay `find_simplex`
-locates them, every later step is a column-wise array operation): `BatchEvaluation.evaluation(i)`
-is what `evaluate` returns for query i.
+
+`evaluate_many` does the same for an array of queries at once: `geometry.TriangleLocator` finds
+every query's triangle (a bucket grid, `locate`'s exact answers), queries outside the hull go to
+their nearest hull edge together, and each branch of the graph is a small (Q, 3) block of (clip,
+weight) columns that is mixed, merged, culled, unitized and synced column-wise.
+`BatchEvaluation.evaluation(i)` is what `evaluate` returns for query i (the tests check it).
 """
 
 from __future__ import annotations
