@@ -93,3 +93,32 @@ def test_index_and_suggest_fill_the_placeholders(tmp_path: Path, capsys: pytest.
 def test_index_rejects_a_missing_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["index", str(tmp_path / "nope"), "--store", str(tmp_path / "s")]) == 2
     assert "not a folder" in capsys.readouterr().err
+
+
+def test_index_runs_on_a_given_scheduler(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """DASK_SCHEDULER_ADDRESS (a studio's cluster; here one started by the test) takes the job
+    instead of an embedded cluster, and `--scheduler` does the same."""
+    from distributed import LocalCluster
+
+    _write(tmp_path / "library", LIBRARY_CLIPS[:2])
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler_address)
+        assert main(["index", str(tmp_path / "library"), "--store", str(tmp_path / "a")]) == 0
+        monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+        store = str(tmp_path / "b")
+        argv = [
+            "index",
+            str(tmp_path / "library"),
+            "--store",
+            store,
+            "--scheduler",
+            cluster.scheduler_address,
+        ]
+        assert main(argv) == 0
+        # The cluster still runs: index closed its client, not the studio's scheduler.
+        assert cluster.scheduler is not None and cluster.status.name == "running"
+    assert sorted(r["name"] for r in read_index(str(tmp_path / "a"))) == ["take_run_right", "take_walk_right"]
+    assert sorted(r["name"] for r in read_index(store)) == ["take_run_right", "take_walk_right"]
+    assert capsys.readouterr().out.count("indexed 2 animation(s)") == 2
