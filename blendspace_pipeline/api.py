@@ -31,9 +31,12 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from types import MappingProxyType
 from typing import ClassVar, TypeVar
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
 
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
@@ -52,6 +55,13 @@ __all__ = [
 ]
 
 _V = TypeVar("_V")
+
+
+def _frozen_array(values: object, dtype: type, shape: tuple[int, ...]) -> NDArray[np.float64]:
+    """A read-only array: views are shared by every rule, like the mappings."""
+    array: NDArray[np.float64] = np.array(values, dtype=dtype).reshape(shape)
+    array.flags.writeable = False
+    return array
 
 
 def _read_only(mapping: Mapping[str, _V]) -> Mapping[str, _V]:
@@ -193,6 +203,67 @@ class SpaceView:
         """Every triangle edge once, as sorted sample-index pairs."""
         found = {tuple(sorted((t[i], t[(i + 1) % 3]))) for t in self.triangles for i in range(3)}
         return sorted((int(a), int(b)) for a, b in found)
+
+    # Vectorised views, for rules that must scale to thousands of samples: read-only numpy
+    # arrays in sample order, computed once per view and shared by every rule.
+
+    @cached_property
+    def positions(self) -> NDArray[np.float64]:
+        """(N, 2) placed positions, axis units."""
+        return _frozen_array([s.position for s in self.samples], np.float64, (-1, 2))
+
+    @cached_property
+    def normalised_positions(self) -> NDArray[np.float64]:
+        """(N, 2) placed positions, normalised (0..100 per axis)."""
+        return _frozen_array([s.normalised for s in self.samples], np.float64, (-1, 2))
+
+    @cached_property
+    def measured_positions(self) -> NDArray[np.float64]:
+        """(N, 2) measured (unsnapped) positions, axis units."""
+        return _frozen_array([s.measured for s in self.samples], np.float64, (-1, 2))
+
+    @cached_property
+    def triangle_array(self) -> NDArray[np.int64]:
+        """(T, 3) triangles as sample indices."""
+        return _frozen_array(self.triangles, np.int64, (-1, 3))  # type: ignore[return-value]
+
+    def feature_array(self, feature: str) -> NDArray[np.float64]:
+        """(N,) a measured feature of every sample; NaN where a sample lacks it."""
+        return _frozen_array([s.features.get(feature, np.nan) for s in self.samples], np.float64, (-1,))
+
+    def close_pairs(self, radius: float) -> NDArray[np.int64]:
+        """(P, 2) index pairs ``i < j`` of samples closer than ``radius`` in normalised units,
+        sorted; found with a k-d tree (about n log n), not by testing all n^2 pairs."""
+        points = self.normalised_positions
+        if len(points) < 2 or radius <= 0.0:
+            return np.zeros((0, 2), dtype=np.int64)
+        from scipy.spatial import cKDTree  # local import: scipy loads only when a rule asks
+
+        found = cKDTree(points).query_pairs(radius, output_type="ndarray")
+        pairs: NDArray[np.int64] = np.asarray(found, dtype=np.int64).reshape(-1, 2)
+        pairs.sort(axis=1)
+        difference = points[pairs[:, 0]] - points[pairs[:, 1]]
+        pairs = pairs[np.hypot(difference[:, 0], difference[:, 1]) < radius]  # strictly closer
+        return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+    def close_groups(self, radius: float) -> list[list[int]]:
+        """Groups of two or more samples linked by chains of `close_pairs` (connected components),
+        each as sorted sample indices, ordered by their first index."""
+        pairs = self.close_pairs(radius)
+        if not len(pairs):
+            return []
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        count = len(self.samples)
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(count, count))
+        _, labels = connected_components(graph, directed=False)
+        sizes = np.bincount(labels)
+        groups: dict[int, list[int]] = {}
+        for index, label in enumerate(labels.tolist()):
+            if sizes[label] > 1:
+                groups.setdefault(label, []).append(index)
+        return list(groups.values())
 
 
 class RuleOptions(BaseModel):

@@ -19,7 +19,7 @@ from pathlib import Path
 from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError
 
-COMMANDS = ("build", "check", "rules", "schema", "eval", "export")
+COMMANDS = ("build", "check", "rules", "schema", "eval", "export", "index", "suggest")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -26,25 +26,8 @@ class TooClose(Rule):
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
         tau = space.thresholds["too_close"]
-        count = len(space.samples)
-        parent = list(range(count))
-
-        def root(i: int) -> int:
-            while parent[i] != i:
-                parent[i] = parent[parent[i]]
-                i = parent[i]
-            return i
-
-        closest: dict[int, float] = {}
-        for i in range(count):
-            for j in range(i + 1, count):
-                d = distance(space.samples[i].normalised, space.samples[j].normalised)
-                if d < tau:
-                    parent[root(j)] = root(i)
-                    closest[root(i)] = min(closest.get(root(i), d), d)
-        clusters: dict[int, list[int]] = {}
-        for i in range(count):
-            clusters.setdefault(root(i), []).append(i)
+        # Clusters: samples linked by chains of pairs closer than tau (a k-d tree finds the pairs).
+        clusters = {members[0]: members for members in space.close_groups(tau)}
         for members in clusters.values():
             if len(members) < 2:
                 continue

@@ -201,6 +201,8 @@ def test_a_failing_writer_leaves_nothing_behind(tmp_path: Path, monkeypatch: pyt
     assert main(["build", str(manifest)]) in (0, 1)
     previous = _tree(tmp_path / "build")
     monkeypatch.setattr(report, "write_png", broken_png)
+    # An edited manifest, so the build runs again (an unchanged one replays its stamp, writing nothing).
+    manifest.write_text(manifest.read_text() + "# edited\n")
     assert main(["build", str(manifest)]) == 2
     assert _tree(tmp_path / "build") == previous
 

@@ -16,7 +16,13 @@ import pytest
 from conftest import shared_data
 
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics, validate_clip
-from blendspace_pipeline.motion.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
+from blendspace_pipeline.motion.clip_ops import (
+    IncompatibleClips,
+    blend_clips,
+    mirror_clip,
+    phase,
+    straighten_clip,
+)
 from blendspace_pipeline.motion.clip_ops.blend import resample_linear, resample_quaternions
 from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal, frames_at_phases
 from blendspace_pipeline.motion.detect import RigSettings, detect_tpose_frame
@@ -144,6 +150,48 @@ def test_cmu_walk_has_a_gait_cycle() -> None:
     assert cycle is not None and cycle.feet == ("LeftAnkle", "RightAnkle")
     # About one stride per second (measured by hand from the ankle signal's zero crossings).
     assert 0.8 < cycle.period < 1.1 and cycle.cycles > 3
+
+
+def test_stride_grid_fit_equals_the_direct_fit() -> None:
+    """The chirp-z grid fit is the same least-squares R^2 as fitting each frequency on its own."""
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        count, fps = int(rng.integers(40, 2000)), 30.0
+        times = np.arange(count) / fps
+        noise = rng.normal(0.0, rng.uniform(0.0, 1.0), count)
+        signal = np.sin(2.0 * np.pi * rng.uniform(0.3, 3.0) * times + 1.0) + noise + rng.uniform(-1, 1)
+        duration = (count - 1) / fps
+        low, step = 0.95 / duration, 0.02 / duration
+        grid = np.arange(low, 4.0 + step, step)
+        direct = phase._sinusoid_fit(signal, times, grid)
+        fast = phase._sinusoid_fit_grid(signal, low / fps, step / fps, len(grid))
+        assert np.abs(direct - fast).max() < 1e-9
+
+
+def test_stride_frequency_of_a_long_open_take() -> None:
+    """Two minutes at 120 fps of a walk that does not loop (cut mid-stride): the period comes from
+    the grid fit and the crossings, and must be the generator's cadence (1.3 m strides at 1.5 m/s)."""
+    clip = generate(GaitSpec("walk", speed=1.5, duration=130.0, fps=120.0)).trimmed(37, 120 * 120 + 37)
+    cycle = detect_cycle(clip, SETTINGS)
+    assert cycle is not None and cycle.loop_strides == 0
+    truth = 130.0 / round(1.5 * 130.0 / 1.3)
+    assert cycle.period == pytest.approx(truth, rel=2e-3)
+    frequency, fit = phase._stride_frequency(foot_signal(clip, SETTINGS)[0], clip.fps)  # type: ignore[index]
+    assert frequency == pytest.approx(1.0 / truth, rel=2e-3) and fit > 0.9
+
+
+def test_stride_frequency_of_a_real_take_is_unchanged() -> None:
+    """On a real walk, the fast grid finds the same frequency as the direct grid it replaces."""
+    clip = read_clips(shared_data("cmu", "131_02.bvh"))[0]
+    signal = foot_signal(clip, SETTINGS)[0]  # type: ignore[index]
+    fps = clip.fps
+    thin = max(1, int(fps // 30))
+    duration = (len(signal) - 1) / fps
+    low, step = 0.95 / duration, 0.02 / duration
+    grid = np.arange(low, min(4.0, fps / 4.0) + step, step)
+    direct = phase._sinusoid_fit(signal[::thin], np.arange(len(signal))[::thin] / fps, grid)
+    frequency, _ = phase._stride_frequency(signal, fps)
+    assert abs(frequency - grid[int(np.argmax(direct))]) <= step
 
 
 # -- blending -------------------------------------------------------------------------------------

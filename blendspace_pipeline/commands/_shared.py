@@ -6,73 +6,82 @@ import argparse
 import inspect
 import sys
 from collections.abc import Iterator, Sequence
+from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
-from blendspace_pipeline.checks.rule_engine import ENGINE_CODES, loaded_rules_of
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
-from blendspace_pipeline.space.model import BetaSpace, BlendSpace
+
+if TYPE_CHECKING:  # the analysis loads only when a command runs one (a no-op replay never does)
+    from blendspace_pipeline.space.model import BlendSpace
 
 INVALID_INPUT = "invalid-input"
 # The engine's own codes: BS900-BS902 in rule_engine, BS903/BS904 in fix_loop; this is the next.
 INVALID_INPUT_CODE = "BS905"
 
+
 # Findings that come from the engine rather than from a Rule class still need a SARIF descriptor.
-ENGINE_RULES: dict[str, RuleInfo] = {
-    "plugin-error": RuleInfo(
-        ENGINE_CODES["plugin-error"],
-        "a rule plugin could not be loaded",
-        "A rule plugin (from `plugins:`, BLENDSPACE_RULE_PATH or an entry point) failed to import "
-        "or defines an incomplete or duplicate rule. The other rules still ran.",
-        "error",
-    ),
-    "unused-suppression": RuleInfo(
-        ENGINE_CODES["unused-suppression"],
-        "a clip's `ignore:` entry suppressed nothing",
-        "A clip entry ignores a rule that reported nothing on it: the suppression is stale.",
-        "warning",
-    ),
-    "rule-crashed": RuleInfo(
-        ENGINE_CODES["rule-crashed"],
-        "a rule raised an exception",
-        "A rule crashed while checking the blend space; its findings are missing, the other rules ran.",
-        "error",
-    ),
-    "unknown-rule": RuleInfo(
-        ENGINE_CODES["unknown-rule"],
-        "`rules:` names a rule that is not loaded",
-        "A rule slug or code in `rules:` matches no loaded rule while a plugin failed to load (it may "
-        "be that plugin's). Without a broken plugin an unknown name is a manifest error.",
-        "warning",
-    ),
-    "fix-skipped": RuleInfo(
-        "BS903",
-        "an automatic fix was not applied",
-        "A fixable finding was left as it is because its fix could not be made safely.",
-        "info",
-    ),
-    "fix-removed": RuleInfo(
-        "BS904",
-        "a fix left a clip out of the blend space",
-        "A fix (e.g. too-close: keep-representative or merge) took a clip out of the blend space.",
-        "info",
-    ),
-    "fix-rejected": RuleInfo(
-        "BS907",
-        "a fix that would have made the space worse, and why it was not applied",
-        "The build tried the fix, analysed the space again and kept it only if the findings improved "
-        "(fewer errors, then fewer warnings, then more coverage) and no authored key clip was lost.",
-        "info",
-    ),
-    INVALID_INPUT: RuleInfo(
-        INVALID_INPUT_CODE,
-        "a manifest or one of its clips cannot be read or is invalid",
-        "The manifest does not validate, or a clip it names is missing or unreadable. Nothing was "
-        "checked for this manifest; the message says where and the hint how to fix it.",
-        "error",
-    ),
-}
+# Built on first use: the rule engine loads only when a command runs the rules.
+@cache
+def engine_rules() -> dict[str, RuleInfo]:
+    from blendspace_pipeline.checks.rule_engine import ENGINE_CODES
+
+    return {
+        "plugin-error": RuleInfo(
+            ENGINE_CODES["plugin-error"],
+            "a rule plugin could not be loaded",
+            "A rule plugin (from `plugins:`, BLENDSPACE_RULE_PATH or an entry point) failed to import "
+            "or defines an incomplete or duplicate rule. The other rules still ran.",
+            "error",
+        ),
+        "unused-suppression": RuleInfo(
+            ENGINE_CODES["unused-suppression"],
+            "a clip's `ignore:` entry suppressed nothing",
+            "A clip entry ignores a rule that reported nothing on it: the suppression is stale.",
+            "warning",
+        ),
+        "rule-crashed": RuleInfo(
+            ENGINE_CODES["rule-crashed"],
+            "a rule raised an exception",
+            "A rule crashed while checking the blend space; its findings are missing, the other rules ran.",
+            "error",
+        ),
+        "unknown-rule": RuleInfo(
+            ENGINE_CODES["unknown-rule"],
+            "`rules:` names a rule that is not loaded",
+            "A rule slug or code in `rules:` matches no loaded rule while a plugin failed to load (it may "
+            "be that plugin's). Without a broken plugin an unknown name is a manifest error.",
+            "warning",
+        ),
+        "fix-skipped": RuleInfo(
+            "BS903",
+            "an automatic fix was not applied",
+            "A fixable finding was left as it is because its fix could not be made safely.",
+            "info",
+        ),
+        "fix-removed": RuleInfo(
+            "BS904",
+            "a fix left a clip out of the blend space",
+            "A fix (e.g. too-close: keep-representative or merge) took a clip out of the blend space.",
+            "info",
+        ),
+        "fix-rejected": RuleInfo(
+            "BS907",
+            "a fix that would have made the space worse, and why it was not applied",
+            "The build tried the fix, analysed the space again and kept it only if the findings improved "
+            "(fewer errors, then fewer warnings, then more coverage) and no authored key clip was lost.",
+            "info",
+        ),
+        INVALID_INPUT: RuleInfo(
+            INVALID_INPUT_CODE,
+            "a manifest or one of its clips cannot be read or is invalid",
+            "The manifest does not validate, or a clip it names is missing or unreadable. Nothing was "
+            "checked for this manifest; the message says where and the hint how to fix it.",
+            "error",
+        ),
+    }
 
 
 def add_common(parser: argparse.ArgumentParser) -> None:
@@ -128,6 +137,8 @@ def report_input_error(fmt: str, error: InputError, manifest: Path) -> Diagnosti
 
 
 def _spaces(space: BlendSpace) -> Iterator[BlendSpace]:
+    from blendspace_pipeline.space.model import BetaSpace
+
     yield space
     for layer in space.layer_spaces:
         if isinstance(layer, BetaSpace):
@@ -136,7 +147,9 @@ def _spaces(space: BlendSpace) -> Iterator[BlendSpace]:
 
 def rule_catalogue(spaces: Sequence[BlendSpace]) -> dict[str, RuleInfo]:
     """Every rule these spaces ran (built-ins, entry points, their manifests' plugins), for SARIF."""
-    catalogue = dict(ENGINE_RULES)
+    from blendspace_pipeline.checks.rule_engine import loaded_rules_of
+
+    catalogue = dict(engine_rules())
     for space in spaces:
         for each in _spaces(space):
             loaded = loaded_rules_of(each)

@@ -1,5 +1,8 @@
 """`blendspace eval BLENDSPACE.json --at x=..,y=.. [--layer NAME=VALUE ...]`: weights at one query.
 
+`--points FILE` evaluates every row of a CSV file (x,y per line, axis units; an optional header
+row) in one batch (`evaluate_many`): one line per query, or a JSON array with `--format json`.
+
 Prints what the blend graph (main space, beta and style layers) blends at the query: clips,
 weights summing to 1, the layer each clip comes from and the playback rate that keeps the gait
 cycles aligned. `--format json` gives the same as `Evaluation.to_json()`.
@@ -13,9 +16,17 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
 from blendspace_pipeline.space.document import BlendSpaceDocument
-from blendspace_pipeline.space.evaluate import DEFAULT_CULL, Evaluation, LayerReport, evaluate
+from blendspace_pipeline.space.evaluate import (
+    DEFAULT_CULL,
+    Evaluation,
+    LayerReport,
+    evaluate,
+    evaluate_many,
+)
 from blendspace_pipeline.space.layers_doc import read_document
 from blendspace_pipeline.space.runtime_blend import delivered_at_rates
 
@@ -28,7 +39,14 @@ _AT_HINT = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("blendspace", type=Path, metavar="BLENDSPACE.json", help="a built N.blendspace.json")
-    parser.add_argument("--at", required=True, metavar="x=..,y=..", help="the query point, in axis units")
+    where = parser.add_mutually_exclusive_group(required=True)
+    where.add_argument("--at", metavar="x=..,y=..", help="the query point, in axis units")
+    where.add_argument(
+        "--points",
+        type=Path,
+        metavar="FILE.csv",
+        help="evaluate every 'x,y' row of this CSV file (axis units; '-' reads stdin) in one batch",
+    )
     parser.add_argument(
         "--layer",
         action="append",
@@ -47,6 +65,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     doc = read_document(args.blendspace)
+    if args.points is not None:
+        return _run_batch(args, doc)
     try:
         x, y = parse_at(args.at, doc)
         layers = parse_layer_values(args.layer)
@@ -59,6 +79,66 @@ def run(args: argparse.Namespace) -> int:
         json.dumps(result.to_json(), indent=2) + "\n" if args.format == "json" else render(doc, result)
     )
     return EXIT_OK
+
+
+def _run_batch(args: argparse.Namespace, doc: BlendSpaceDocument) -> int:
+    points = read_points(args.points)
+    try:
+        result = evaluate_many(
+            doc, points, layers=parse_layer_values(args.layer), cull=args.cull, joint=args.joint
+        )
+    except InputError as error:
+        if error.path is None:
+            error.path = args.blendspace
+        raise
+    if args.format == "json":
+        sys.stdout.write(json.dumps(result.to_json()) + "\n")
+        return EXIT_OK
+    lines = []
+    for row in range(len(result)):
+        x, y = result.queries[row]
+        parts = [
+            f"{result.clips[index].name}={weight:.4f}"
+            for index, weight in zip(result.clip_index[row], result.weights[row], strict=True)
+            if index >= 0
+        ]
+        lines.append(f"{x:g},{y:g}: " + " ".join(parts) + (" (outside)" if result.outside_hull[row] else ""))
+    sys.stdout.write("\n".join(lines) + "\n")
+    return EXIT_OK
+
+
+def read_points(path: Path) -> np.ndarray:
+    """(Q, 2) queries from a CSV file of ``x,y`` rows; a first row that is not numbers is a header."""
+    try:
+        text = sys.stdin.read() if str(path) == "-" else path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(
+            f"cannot read points: {error}", path=path, hint="give a CSV file of x,y rows"
+        ) from None
+    rows: list[tuple[float, float]] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        cells = [cell.strip() for cell in line.split(",")]
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            if len(cells) != 2:
+                raise ValueError
+            x, y = float(cells[0]), float(cells[1])
+        except ValueError:
+            if not rows and number == 1:
+                continue  # a header row
+            raise InputError(
+                f"row {number} is not two numbers: {line.strip()!r}",
+                path=path,
+                line=number,
+                hint="each row is x,y in axis units, e.g. 0,1.4",
+            ) from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise InputError(f"row {number} is not finite", path=path, line=number, hint="use finite numbers")
+        rows.append((x, y))
+    if not rows:
+        raise InputError("no points in the file", path=path, hint="each row is x,y in axis units, e.g. 0,1.4")
+    return np.array(rows, dtype=np.float64)
 
 
 def parse_at(text: str, doc: BlendSpaceDocument) -> tuple[float, float]:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from blendspace_pipeline.api import Rule
-from blendspace_pipeline.checks.rule_engine import load_rules
+if TYPE_CHECKING:
+    from blendspace_pipeline.api import Rule
 
 HELP = "list every available rule (built-in, entry points, BLENDSPACE_RULE_PATH)"
 
@@ -18,6 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from blendspace_pipeline.checks.rule_engine import load_rules  # only when this command runs
+
     loaded = load_rules()
     rows: list[dict[str, Any]] = [
         {

@@ -12,12 +12,15 @@ import hashlib
 import json
 import os
 import tempfile
+import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.motion.measure import Measurement
+
+if TYPE_CHECKING:  # numpy and the measurement code load only when an entry is read
+    from blendspace_pipeline.motion.measure import Measurement
 
 
 def cache_dir() -> Path | None:
@@ -35,19 +38,54 @@ MEASUREMENT_REVISION = 4  # 3: detection from the body, sway-free heading; 4: fo
 
 
 def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | str | None) -> str:
+    digest = hashlib.sha256(content_digest(path).encode())
+    # The file name too: clips are named after it, so two copies of one take must not share names.
+    digest.update(f"|{path.name}|{__version__}|{MEASUREMENT_REVISION}|{settings_key}|{time_range!r}".encode())
+    return digest.hexdigest()
+
+
+def content_digest(path: Path) -> str:
+    """SHA-256 of the file's bytes, remembered by (path, size, mtime, inode): a file whose stat did
+    not move is not read again, so a rebuild after one edit hashes one clip, not the library."""
+    info = path.stat()
+    folder = cache_dir()
+    stat_key = f"{path.absolute()}|{info.st_size}|{info.st_mtime_ns}|{info.st_ino}"
+    entry = None
+    if folder is not None:
+        entry = folder / "digests" / f"{hashlib.sha256(stat_key.encode()).hexdigest()}.txt"
+        try:
+            return entry.read_text(encoding="ascii").strip()
+        except OSError:
+            pass
     digest = hashlib.sha256()
     with path.open("rb") as stream:
         for block in iter(lambda: stream.read(1 << 20), b""):
             digest.update(block)
-    # The file name too: clips are named after it, so two copies of one take must not share names.
-    digest.update(f"|{path.name}|{__version__}|{MEASUREMENT_REVISION}|{settings_key}|{time_range!r}".encode())
-    return digest.hexdigest()
+    value = digest.hexdigest()
+    # A file modified in the last seconds may change again within the clock's granularity with
+    # the same size (git's "racy" case): it is remembered only once its mtime has settled.
+    if entry is not None and time.time_ns() - info.st_mtime_ns > 2_000_000_000:
+        _write_atomic(entry, value)
+    return value
+
+
+def _write_atomic(target: Path, text: str) -> None:
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".tmp")
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        os.replace(temporary, target)
+    except OSError:
+        pass  # a read-only or full cache folder must never fail a build
 
 
 def load(key: str) -> list[tuple[str, Measurement]] | None:
     folder = cache_dir()
     if folder is None:
         return None
+    from blendspace_pipeline.motion.measure import Measurement
+
     try:
         entries: list[dict[str, Any]] = json.loads((folder / f"{key}.json").read_text(encoding="utf-8"))
         return [(entry["name"], Measurement(**entry["measurement"])) for entry in entries]

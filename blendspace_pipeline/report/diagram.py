@@ -243,8 +243,11 @@ def build_scene(doc: BlendSpaceDocument, layout: Layout | None = None) -> Scene:
         placeholders=_placeholders(doc, layout, axes),
         coverage=coverage_percent(hull),
     )
+    by_name = {m.name: m for m in scene.samples}  # once: thousands of findings look clips up
     scene.problems = [
-        p for i, d in enumerate(doc.diagnostics) if (p := _problem(i, d, scene, doc, axes)) is not None
+        p
+        for i, d in enumerate(doc.diagnostics)
+        if (p := _problem(i, d, scene, doc, axes, by_name)) is not None
     ]
     return scene
 
@@ -275,9 +278,9 @@ def _problem(
     scene: Scene,
     doc: BlendSpaceDocument,
     axes: tuple[AxisRange, AxisRange],
+    by_name: dict[str, Marker],
 ) -> Problem | None:
     """The area that shows a diagnostic in the diagram, by rule; None when it has no place."""
-    by_name = {m.name: m for m in scene.samples}
     members = [(by_name[c].x, by_name[c].y) for c in diagnostic.clips if c in by_name]
     where = _position_pixel(diagnostic.position, scene.layout, axes)
 

@@ -2,9 +2,11 @@
 
 The only module of the package that imports OpenImageIO. It draws the same `diagram.Scene` as
 the HTML report: translucent areas (uncovered hatch, acute triangles, too-close clusters) are
-painted with numpy first, then OIIO draws grid, edges, outlines, markers and text. Everything is
-drawn at twice the size and reduced with a box filter, which anti-aliases OIIO's one-pixel lines
-and text without changing the colour at a marker's centre.
+painted with numpy first, then grid, edges, outlines and markers are rasterised in numpy too
+(`_Pen`: thousands of segments and markers at once, so 10,000 samples cost about as much as a
+few hundred), and OIIO draws the text and the legend. Everything is drawn at twice the size and
+reduced with a box filter, which anti-aliases the one-pixel lines and text without changing the
+colour at a marker's centre.
 """
 
 from __future__ import annotations
@@ -54,11 +56,19 @@ def render(doc: BlendSpaceDocument) -> oiio.ImageBuf:
     big = _scaled(PNG_LAYOUT)
     scene = build_scene(doc, big)
     canvas = _paint_areas(scene)
+    pen = _Pen(canvas)
+    _draw_frame(pen, scene)
+    _draw_problems(pen, scene)
     buf = oiio.ImageBuf(oiio.ImageSpec(big.width, big.height, 3, "float"))
-    buf.set_pixels(oiio.ROI(0, big.width, 0, big.height, 0, 1, 0, 3), canvas.astype(np.float32))
-    _draw_frame(buf, scene)
-    _draw_problems(buf, scene)
-    _draw_markers(buf, scene)
+    roi = oiio.ROI(0, big.width, 0, big.height, 0, 1, 0, 3)
+    if len(scene.samples) <= LABEL_LIMIT:
+        # Names go under the markers (a neighbour's label must not cover a marker's centre): OIIO
+        # draws them on the canvas so far, the markers follow on its result.
+        buf.set_pixels(roi, canvas.astype(np.float32))
+        _draw_labels(buf, scene)
+        pen = _Pen(np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float64).reshape(canvas.shape))
+    _draw_markers(pen, scene)
+    buf.set_pixels(roi, pen.canvas.astype(np.float32))
     _draw_titles(buf, scene, doc)
     _draw_legend(buf, scene)
     small = oiio.ImageBuf(oiio.ImageSpec(PNG_LAYOUT.width, PNG_LAYOUT.height, 3, "float"))
@@ -234,80 +244,202 @@ def _square(buf: oiio.ImageBuf, centre: Point, radius: float, colour: Colour) ->
     algo.render_box(buf, cx - r, cy - r, cx + r, cy + r, colour, fill=True)
 
 
-def _draw_frame(buf: oiio.ImageBuf, scene: Scene) -> None:
+class _Pen:
+    """Lines and filled markers rasterised straight into the numpy canvas, many at a time.
+
+    A line ``width`` pixels wide is parallel one-pixel lines half a pixel apart along its normal
+    (whole-pixel offsets along a diagonal normal round onto the same rows and leave gaps), each
+    from its rounded end point to the other, one pixel per step along its longer extent. Filled
+    markers (disc, square, diamond) are one span per scanline, like OIIO's boxes were. Colours
+    are opaque: a later shape covers an earlier one.
+    """
+
+    def __init__(self, canvas: FloatArray):
+        self.canvas = canvas
+        self.height, self.width = canvas.shape[:2]
+
+    def lines(self, starts: FloatArray, ends: FloatArray, colour: Colour, width: float = 1.0) -> None:
+        """Segments ``starts[i]`` -> ``ends[i]`` (pixels, (S, 2)), all in one colour."""
+        starts = np.asarray(starts, dtype=np.float64).reshape(-1, 2)
+        ends = np.asarray(ends, dtype=np.float64).reshape(-1, 2)
+        if not len(starts):
+            return
+        delta = ends - starts
+        length = np.hypot(delta[:, 0], delta[:, 1])
+        length[length == 0.0] = 1.0
+        normal = np.stack([-delta[:, 1] / length, delta[:, 0] / length], axis=1)
+        offsets = np.arange(-(width - 1) / 2.0, (width - 1) / 2.0 + 0.01, 0.5)
+        shifted = normal[None, :, :] * offsets[:, None, None]  # (O, S, 2)
+        a = np.round(starts[None] + shifted).reshape(-1, 2).astype(np.int64)
+        b = np.round(ends[None] + shifted).reshape(-1, 2).astype(np.int64)
+        steps = np.abs(b - a).max(axis=1) + 1  # pixels per one-pixel line
+        line = np.repeat(np.arange(len(a)), steps)
+        first = np.cumsum(steps) - steps
+        along = (np.arange(int(steps.sum())) - first[line]) / np.maximum(steps[line] - 1, 1)
+        xs = np.round(a[line, 0] + along * (b[line, 0] - a[line, 0])).astype(np.int64)
+        ys = np.round(a[line, 1] + along * (b[line, 1] - a[line, 1])).astype(np.int64)
+        self._paint(xs, ys, colour)
+
+    def line(self, a: Point, b: Point, colour: Colour, width: float = 1.0) -> None:
+        self.lines(np.array([a]), np.array([b]), colour, width)
+
+    def circle(self, centre: Point, radius: float, colour: Colour, width: float) -> None:
+        segments = max(24, int(radius))
+        angle = 2.0 * np.pi * np.arange(segments + 1) / segments
+        points = np.stack([centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)], axis=1)
+        self.lines(points[:-1], points[1:], colour, width)
+
+    def markers(
+        self,
+        centres: FloatArray,
+        kinds: np.ndarray,
+        layers_for: Sequence[Sequence[tuple[str, float, Colour]]],
+    ) -> None:
+        """Marker i at ``centres[i]`` drawn with the (shape, radius, colour) layers of kind
+        ``kinds[i]``, in order: every marker's layers before the next marker's, so a later
+        marker's outline covers an earlier marker as drawing them one by one would."""
+        centres = np.round(np.asarray(centres, dtype=np.float64).reshape(-1, 2)).astype(np.int64)
+        if not len(centres):
+            return
+        # Each kind's layers flattened into one template of pixel offsets and colour indices; a
+        # pixel a later layer of the same marker paints again is left out of the earlier one.
+        dxs, dys, colour_ids, sizes = [], [], [], []
+        palette: list[Colour] = []
+        for layers in layers_for:
+            covered: dict[tuple[int, int], int] = {}
+            for shape, radius, colour in layers:
+                for offset in zip(*(a.tolist() for a in _shape_offsets(shape, radius)), strict=True):
+                    covered.pop(offset, None)
+                    covered[offset] = len(palette)
+                palette.append(colour)
+            dxs.append(np.array([x for x, _ in covered], dtype=np.int64))
+            dys.append(np.array([y for _, y in covered], dtype=np.int64))
+            colour_ids.append(np.array(list(covered.values()), dtype=np.int64))
+            sizes.append(len(covered))
+        template_start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        template_dx, template_dy = np.concatenate(dxs), np.concatenate(dys)
+        template_colour = np.concatenate(colour_ids)
+        counts = np.asarray(sizes, dtype=np.int64)[kinds]
+        marker = np.repeat(np.arange(len(centres)), counts)
+        first = np.cumsum(counts) - counts
+        slot = template_start[kinds][marker] + np.arange(int(counts.sum())) - first[marker]
+        xs = centres[marker, 0] + template_dx[slot]
+        ys = centres[marker, 1] + template_dy[slot]
+        keep = (xs >= 0) & (xs < self.width) & (ys >= 0) & (ys < self.height)
+        flat = (ys * self.width + xs)[keep]
+        # The last write to each pixel wins: the highest write index that reaches it.
+        last = np.full(self.width * self.height, -1, dtype=np.int64)
+        np.maximum.at(last, flat, np.arange(len(flat)))
+        pixels = np.flatnonzero(last >= 0)
+        colours = np.array(palette, dtype=np.float64)[template_colour[slot[keep]][last[pixels]]]
+        self.canvas.reshape(-1, 3)[pixels] = colours
+
+    def _paint(self, xs: np.ndarray, ys: np.ndarray, colour: Colour) -> None:
+        keep = (xs >= 0) & (xs < self.width) & (ys >= 0) & (ys < self.height)
+        self.canvas[ys[keep], xs[keep]] = colour
+
+
+@cache
+def _shape_offsets(shape: str, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel offsets of a filled marker, one span per scanline (as `_disc`, `_square`, `_diamond`)."""
+    r = round(radius)
+    xs: list[int] = []
+    ys: list[int] = []
+    for dy in range(-r, r + 1):
+        if shape == "disc":
+            half = math.floor(math.sqrt(max(0.0, radius * radius - dy * dy)))
+        elif shape == "diamond":
+            half = r - abs(dy)
+        else:  # square
+            half = r
+        xs += range(-half, half + 1)
+        ys += [dy] * (2 * half + 1)
+    return np.array(xs, dtype=np.int64), np.array(ys, dtype=np.int64)
+
+
+def _draw_frame(pen: _Pen, scene: Scene) -> None:
     lay = scene.layout
     left, top = float(lay.left), float(lay.top)
     right, bottom = lay.left + lay.plot_width, lay.top + lay.plot_height
-    grid, muted = _rgb("grid"), _rgb("muted")
+    grid = _rgb("grid")
     for tick in scene.x_ticks:
-        _line(buf, (tick.pixel, top), (tick.pixel, bottom), grid, SCALE)
-        _text(buf, tick.pixel, bottom + 20 * SCALE, tick.label, 13, muted, align="center")
+        pen.line((tick.pixel, top), (tick.pixel, bottom), grid, SCALE)
     for tick in scene.y_ticks:
-        _line(buf, (left, tick.pixel), (right, tick.pixel), grid, SCALE)
-        _text(buf, left - 8 * SCALE, tick.pixel + 5 * SCALE, tick.label, 13, muted, align="right")
+        pen.line((left, tick.pixel), (right, tick.pixel), grid, SCALE)
     axis = _rgb("main-axis")
     if scene.zero_x is not None:
-        _line(buf, (scene.zero_x, top), (scene.zero_x, bottom), axis, 2 * SCALE)
+        pen.line((scene.zero_x, top), (scene.zero_x, bottom), axis, 2 * SCALE)
     if scene.zero_y is not None:
-        _line(buf, (left, scene.zero_y), (right, scene.zero_y), axis, 2 * SCALE)
-    algo.render_box(buf, int(left), int(top), int(right), int(bottom), _rgb("muted"))
-    edge = _rgb("edge")
-    for a, b in scene.edges:
-        sa, sb = scene.samples[a], scene.samples[b]
-        _line(buf, (sa.x, sa.y), (sb.x, sb.y), edge, 1.5 * SCALE)
+        pen.line((left, scene.zero_y), (right, scene.zero_y), axis, 2 * SCALE)
+    x0, y0, x1, y1 = int(left), int(top), int(right), int(bottom)
+    corners = np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], dtype=np.float64)
+    pen.lines(corners, np.roll(corners, -1, axis=0), _rgb("muted"))
+    if scene.edges:
+        points = np.array([(m.x, m.y) for m in scene.samples], dtype=np.float64)
+        edges = np.array(scene.edges, dtype=np.int64)
+        pen.lines(points[edges[:, 0]], points[edges[:, 1]], _rgb("edge"), 1.5 * SCALE)
 
 
-def _draw_problems(buf: oiio.ImageBuf, scene: Scene) -> None:
+def _draw_problems(pen: _Pen, scene: Scene) -> None:
     """Outlines over the edges: crossing edges, acute triangles, clusters, rings."""
     for problem in scene.problems:
         colour = _c(problem_colour(problem.rule))
         if problem.kind == "edge":
-            _line(buf, problem.points[0], problem.points[1], colour, 4 * SCALE)
-            _cross(buf, problem, colour)
+            pen.line(problem.points[0], problem.points[1], colour, 4 * SCALE)
+            _cross(pen, problem, colour)
         elif problem.kind == "polygon":
-            for a, b in zip(problem.points, problem.points[1:] + problem.points[:1], strict=True):
-                _line(buf, a, b, colour, 1.5 * SCALE)
+            corners = np.array(problem.points, dtype=np.float64)
+            pen.lines(corners, np.roll(corners, -1, axis=0), colour, 1.5 * SCALE)
         elif problem.kind == "circle":
-            _circle(buf, problem.points[0], problem.radius, colour, 1.5 * SCALE)
+            pen.circle(problem.points[0], problem.radius, colour, 1.5 * SCALE)
         elif problem.kind == "rings":
             ring = colour if problem.rule in COLOURS else _severity_colour(problem.severity)
             for centre in problem.points:
-                _circle(buf, centre, problem.radius, ring, 2 * SCALE)
+                pen.circle(centre, problem.radius, ring, 2 * SCALE)
         elif problem.kind == "point":
-            _circle(buf, problem.points[0], 7 * SCALE, _severity_colour(problem.severity), 2 * SCALE)
+            pen.circle(problem.points[0], 7 * SCALE, _severity_colour(problem.severity), 2 * SCALE)
 
 
 def _severity_colour(severity: str) -> Colour:
     return {"error": _c((214, 39, 40)), "warning": _c((201, 138, 0))}.get(severity, _c((58, 120, 194)))
 
 
-def _cross(buf: oiio.ImageBuf, problem: Problem, colour: Colour) -> None:
+def _cross(pen: _Pen, problem: Problem, colour: Colour) -> None:
     if problem.cross is None:
         return
     x, y = problem.cross
     d = 6 * SCALE
-    _line(buf, (x - d, y - d), (x + d, y + d), colour, 2 * SCALE)
-    _line(buf, (x - d, y + d), (x + d, y - d), colour, 2 * SCALE)
+    pen.line((x - d, y - d), (x + d, y + d), colour, 2 * SCALE)
+    pen.line((x - d, y + d), (x + d, y - d), colour, 2 * SCALE)
 
 
-def _draw_markers(buf: oiio.ImageBuf, scene: Scene) -> None:
-    """Labels first, then placeholders, then samples, so every marker's centre keeps its colour."""
+def _draw_markers(pen: _Pen, scene: Scene) -> None:
+    """Placeholders, then samples (each with a white outline), so every marker's centre keeps its colour."""
     white = _rgb("background")
-    if len(scene.samples) <= LABEL_LIMIT:
-        for m in scene.samples:
-            _text(
-                buf, m.x + (SAMPLE_RADIUS + 4) * SCALE, m.y - SAMPLE_RADIUS * SCALE, m.name, 12, _rgb("text")
-            )
-    for p in scene.placeholders:
-        _diamond(buf, (p.x, p.y), (PLACEHOLDER_RADIUS + 1.5) * SCALE, white)
-        _diamond(buf, (p.x, p.y), PLACEHOLDER_RADIUS * SCALE, _rgb(p.priority))
+    diamond_outline = ("diamond", (PLACEHOLDER_RADIUS + 1.5) * SCALE, white)
+    pen.markers(
+        np.array([(p.x, p.y) for p in scene.placeholders]),
+        np.array([p.priority == "suggested" for p in scene.placeholders], dtype=np.int64),
+        [
+            [diamond_outline, ("diamond", PLACEHOLDER_RADIUS * SCALE, _rgb(kind))]
+            for kind in ("necessary", "suggested")
+        ],
+    )
+    outline = (SAMPLE_RADIUS + 1.5) * SCALE
+    pen.markers(
+        np.array([(m.x, m.y) for m in scene.samples]),
+        np.array([m.generated for m in scene.samples], dtype=np.int64),
+        [
+            [("disc", outline, white), ("disc", SAMPLE_RADIUS * SCALE, _rgb("sample"))],
+            [("square", outline, white), ("square", SAMPLE_RADIUS * SCALE, _rgb("generated"))],
+        ],
+    )
+
+
+def _draw_labels(buf: oiio.ImageBuf, scene: Scene) -> None:
+    """Clip names beside their markers (drawn only while there are few enough to read)."""
     for m in scene.samples:
-        if m.generated:
-            _square(buf, (m.x, m.y), (SAMPLE_RADIUS + 1.5) * SCALE, white)
-            _square(buf, (m.x, m.y), SAMPLE_RADIUS * SCALE, _rgb("generated"))
-        else:
-            _disc(buf, (m.x, m.y), (SAMPLE_RADIUS + 1.5) * SCALE, white)
-            _disc(buf, (m.x, m.y), SAMPLE_RADIUS * SCALE, _rgb("sample"))
+        _text(buf, m.x + (SAMPLE_RADIUS + 4) * SCALE, m.y - SAMPLE_RADIUS * SCALE, m.name, 12, _rgb("text"))
 
 
 # ---- text ---------------------------------------------------------------------------------------
@@ -346,6 +478,11 @@ def _text(
 
 def _draw_titles(buf: oiio.ImageBuf, scene: Scene, doc: BlendSpaceDocument) -> None:
     lay = scene.layout
+    left, bottom = float(lay.left), lay.top + lay.plot_height
+    for tick in scene.x_ticks:
+        _text(buf, tick.pixel, bottom + 20 * SCALE, tick.label, 13, _rgb("muted"), align="center")
+    for tick in scene.y_ticks:
+        _text(buf, left - 8 * SCALE, tick.pixel + 5 * SCALE, tick.label, 13, _rgb("muted"), align="right")
     counts = {s: sum(d.severity == s for d in doc.diagnostics) for s in ("error", "warning", "info")}
     generated = sum(s.generated for s in doc.samples)
     _text(buf, lay.left, 32 * SCALE, f"{doc.name} — blend space", 22, _rgb("text"), bold=True)

@@ -24,6 +24,12 @@ Layers apply in document order; a layer with no value (or 0) does not take part.
 (`Evaluation.to_json`), an entry's ``layer`` is null for the main space, else the name of the
 layer where the graph first reached the clip; ``layers`` reports each layer's value, share of
 the total weight, whether it clamped the query, and its per-joint mask.
+
+`evaluate_many` does the same for an array of queries at once: `geometry.TriangleLocator` finds
+every query's triangle (a bucket grid, `locate`'s exact answers), queries outside the hull go to
+their nearest hull edge together, and each branch of the graph is a small (Q, 3) block of (clip,
+weight) columns that is mixed, merged, culled, unitized and synced column-wise.
+`BatchEvaluation.evaluation(i)` is what `evaluate` returns for query i (the tests check it).
 """
 
 from __future__ import annotations
@@ -35,11 +41,19 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.space.document import BlendSpaceDocument, SampleDoc
-from blendspace_pipeline.space.geometry import AxisRange, blend_weights, normalise, space_dimension
+from blendspace_pipeline.space.geometry import (
+    AxisRange,
+    TriangleLocator,
+    blend_weights,
+    hull_edges,
+    normalise,
+    space_dimension,
+)
 from blendspace_pipeline.space.layers_doc import (
     BetaLayerDoc,
     MaskDoc,
@@ -411,3 +425,373 @@ def _rate(sample: SampleDoc | StyleSampleDoc, length: float | None, blended: flo
     if length is not None and blended:
         return length / blended
     return 1.0 if _has_no_gait(sample) else None
+
+
+# --- many queries at once ---------------------------------------------------------------------
+
+IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
+_EPS = 1e-9
+_ZERO_WEIGHT = 1e-12  # as `geometry._pairs`: smaller weights are dropped
+
+
+@dataclass(frozen=True)
+class _Clip:
+    """One distinct clip key of the graph (name, source, mask tag) and its cycle facts."""
+
+    sample: SampleDoc | StyleSampleDoc
+    cycle: float  # NaN: no known cycle
+    no_gait: bool
+
+
+class _Space:
+    """A 2D space (main or beta) ready for batch location: normalised vertices, its triangles
+    and their `TriangleLocator`, and the hull edges queries outside it go to."""
+
+    def __init__(self, doc: BlendSpaceDocument, samples: Sequence[SampleDoc], triangles: list[list[int]]):
+        self.samples = list(samples)
+        self.vertices = normalise(
+            np.array([s.position for s in samples], dtype=np.float64).reshape(-1, 2), _axis_ranges(doc)
+        )
+        self.triangles = np.array(triangles, dtype=np.int64).reshape(-1, 3)
+        if len(self.triangles):
+            self.locator = TriangleLocator(self.vertices, self.triangles)
+            edges = np.array(hull_edges(self.triangles), dtype=np.int64).reshape(-1, 2)
+            self.hull_a, self.hull_b = self.vertices[edges[:, 0]], self.vertices[edges[:, 1]]
+            self.hull_edges = edges
+
+    def weights(self, points: FloatArray) -> tuple[IntArray, FloatArray, BoolArray]:
+        """(sample indices (Q, 3), weights (Q, 3), outside (Q,)) at normalised ``points``; unused
+        columns have index -1 and weight 0."""
+        count = len(points)
+        indices = np.full((count, 3), -1, dtype=np.int64)
+        weights = np.zeros((count, 3))
+        outside = np.zeros(count, dtype=bool)
+        if not len(self.triangles):  # degenerate (1D / 0D): rare and small, one query at a time
+            for row, point in enumerate(points):
+                pairs, moved = blend_weights(point, self.vertices, self.triangles)
+                for column, (index, weight) in enumerate(pairs):
+                    indices[row, column], weights[row, column] = index, weight
+                outside[row] = moved
+            return indices, weights, outside
+        found, bary = self.locator.locate(points)
+        rows = np.flatnonzero(found >= 0)
+        # Columns in sample order, as `geometry._pairs` lists them (equal weights then sort alike).
+        corner_order = np.argsort(self.triangles[found[rows]], axis=1)
+        indices[rows] = np.take_along_axis(self.triangles[found[rows]], corner_order, axis=1)
+        weights[rows] = np.take_along_axis(bary[rows], corner_order, axis=1)
+        away = np.flatnonzero(found < 0)
+        if len(away):
+            outside[away] = True
+            edge, t = self._nearest_hull_edge(points[away])
+            a, b = self.hull_edges[edge, 0], self.hull_edges[edge, 1]  # a < b: `hull_edges` sorts them
+            indices[away, 0], indices[away, 1] = a, b
+            weights[away, 0], weights[away, 1] = 1.0 - t, t
+        weights[weights <= _ZERO_WEIGHT] = 0.0
+        weights /= weights.sum(axis=1, keepdims=True)
+        indices[weights == 0.0] = -1
+        return indices, weights, outside
+
+    def _nearest_hull_edge(self, points: FloatArray) -> tuple[IntArray, FloatArray]:
+        """Index of the nearest hull edge and the parameter t along it, for every point."""
+        ab = self.hull_b - self.hull_a  # (E, 2)
+        length_sq = np.einsum("ed,ed->e", ab, ab)
+        relative = points[:, None, :] - self.hull_a[None]  # (Q, E, 2)
+        t = np.einsum("qed,ed->qe", relative, ab) / np.where(length_sq < _EPS, 1.0, length_sq)
+        t = np.where(length_sq < _EPS, 0.0, np.clip(t, 0.0, 1.0))
+        closest = self.hull_a[None] + t[..., None] * ab[None]
+        distance = np.linalg.norm(points[:, None, :] - closest, axis=2)
+        edge = np.argmin(distance, axis=1)
+        return edge, t[np.arange(len(points)), edge]
+
+
+@dataclass(frozen=True)
+class BatchEvaluation:
+    """`evaluate` at Q queries. Row i holds query i's entries in the order `evaluate` lists them
+    (heaviest first); unused columns have ``clip_index`` -1, weight 0 and a NaN rate."""
+
+    queries: FloatArray  # (Q, 2) axis units
+    clips: list[SampleDoc | StyleSampleDoc]  # what clip_index points at
+    clip_index: IntArray  # (Q, K)
+    weights: FloatArray  # (Q, K), each row sums to 1 over its used columns
+    entry_layer: NDArray[np.object_]  # (Q, K) layer name (None = main) of every entry
+    playback_rates: FloatArray  # (Q, K) NaN where `evaluate` gives None
+    cycle_lengths: FloatArray  # (Q, K) NaN: no gait / unknown
+    outside_hull: BoolArray  # (Q,)
+    hull_points: FloatArray  # (Q, 2) axis units where the main space moved the query, else NaN
+    cycle_length: FloatArray  # (Q,) blended cycle, NaN when none
+    layer_reports: list[LayerReport]  # each layer's value and mask (share/outside per query below)
+    layer_shares: FloatArray  # (Q, L)
+    layer_outside: BoolArray  # (Q, L)
+    joint: str | None
+    cull: float
+    dimension: int
+
+    def __len__(self) -> int:
+        return len(self.queries)
+
+    def evaluation(self, row: int) -> Evaluation:
+        """Query ``row`` as the `Evaluation` `evaluate` returns for it."""
+        entries = []
+        for column in range(self.clip_index.shape[1]):
+            index = int(self.clip_index[row, column])
+            if index < 0:
+                continue
+            sample = self.clips[index]
+            rate, length = float(self.playback_rates[row, column]), float(self.cycle_lengths[row, column])
+            entries.append(
+                WeightEntry(
+                    clip=sample.name,
+                    source=sample.source,
+                    weight=float(self.weights[row, column]),
+                    layer=self.entry_layer[row, column],
+                    playback_rate=None if math.isnan(rate) else rate,
+                    cycle_length=None if math.isnan(length) else length,
+                )
+            )
+        hull = self.hull_points[row]
+        cycle = float(self.cycle_length[row])
+        reports = [
+            LayerReport(
+                r.name,
+                r.kind,
+                r.value,
+                float(self.layer_shares[row, i]),
+                bool(self.layer_outside[row, i]),
+                r.mask,
+            )
+            for i, r in enumerate(self.layer_reports)
+        ]
+        return Evaluation(
+            query=(float(self.queries[row, 0]), float(self.queries[row, 1])),
+            weights=entries,
+            outside_hull=bool(self.outside_hull[row]),
+            hull_point=None if math.isnan(hull[0]) else (float(hull[0]), float(hull[1])),
+            cycle_length=None if math.isnan(cycle) else cycle,
+            layers=reports,
+            joint=self.joint,
+            cull=self.cull,
+            dimension=self.dimension,
+        )
+
+    def to_json(self) -> list[dict[str, Any]]:
+        return [self.evaluation(row).to_json() for row in range(len(self))]
+
+
+class BatchEvaluator:
+    """A document prepared for batch queries: spaces indexed once, reused by every call."""
+
+    def __init__(self, doc: BlendSpaceDocument):
+        self.doc = doc
+        self.layers = parse_layers(doc)
+        self.main = _Space(doc, doc.samples, doc.triangles)
+        self.betas = {
+            layer.name: _Space(doc, layer.samples, layer.triangles)
+            for layer in self.layers
+            if isinstance(layer, BetaLayerDoc)
+        }
+        self.dimension = _dimension(doc)
+        # Every distinct clip key (name, source, mask tag), as `evaluate._merge` keys them.
+        self._keys: dict[tuple[str, str, str | None], int] = {}
+        self._clips: list[_Clip] = []
+        self.main_keys = self._key_ids(doc.samples, None)
+        self.layer_keys: dict[str, IntArray] = {}
+        for layer in self.layers:
+            tag = layer.name if isinstance(layer, StyleLayerDoc) and layer.mask is not None else None
+            self.layer_keys[layer.name] = self._key_ids(layer.samples, tag)
+
+    def _key_ids(self, samples: Sequence[SampleDoc | StyleSampleDoc], tag: str | None) -> IntArray:
+        ids = []
+        for sample in samples:
+            key = (sample.name, sample.source, tag)
+            if key not in self._keys:
+                self._keys[key] = len(self._clips)
+                length = cycle_length(sample)
+                self._clips.append(
+                    _Clip(sample, math.nan if length is None else length, _has_no_gait(sample))
+                )
+            ids.append(self._keys[key])
+        # A trailing -1 so that index -1 (an unused column) maps to "no clip".
+        return np.array([*ids, -1], dtype=np.int64)
+
+    def __call__(
+        self,
+        points: FloatArray,
+        *,
+        layers: Mapping[str, float] | None = None,
+        cull: float = DEFAULT_CULL,
+        joint: str | None = None,
+    ) -> BatchEvaluation:
+        doc = self.doc
+        values = _checked_values(doc, layers or {}, cull)
+        _check_joint(doc, joint)
+        queries = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        count = len(queries)
+        normalised = normalise(queries, _axis_ranges(doc))
+        main_index, main_weight, outside = self.main.weights(normalised)
+        keys = [self.main_keys[main_index]]
+        weights = [main_weight]
+        owners: list[str | None] = [None] * 3
+        hull_points = np.full((count, 2), np.nan)
+        if outside.any():
+            positions = np.array([s.position for s in doc.samples], dtype=np.float64).reshape(-1, 2)
+            rows = np.flatnonzero(outside)
+            picked = positions[np.where(main_index[rows] >= 0, main_index[rows], 0)]
+            hull_points[rows] = np.einsum("qk,qkd->qd", main_weight[rows], picked)
+        any_outside = outside.copy()
+        reports: list[LayerReport] = []
+        layer_outside = np.zeros((count, len(self.layers)), dtype=bool)
+        for position, layer in enumerate(self.layers):
+            value = values.get(layer.name, 0.0)
+            intensity = value * _joint_factor(layer, joint)
+            mask = layer.mask if isinstance(layer, StyleLayerDoc) else None
+            reports.append(LayerReport(layer.name, layer.kind, value, 0.0, False, mask))
+            if intensity <= 0.0:
+                continue
+            if isinstance(layer, BetaLayerDoc):
+                index, weight, moved = self.betas[layer.name].weights(normalised)
+                any_outside |= moved
+            else:
+                index, weight, moved = _style_weights(layer.samples, queries[:, _axis_of_feature(doc, layer)])
+            layer_outside[:, position] = moved
+            # so_far x (1 - intensity) + branch x intensity; zero weights leave (as `_mix`).
+            weights = [w * (1.0 - intensity) for w in weights] + [weight * intensity]
+            keys.append(self.layer_keys[layer.name][index])
+            owners += [layer.name] * index.shape[1]
+        key = np.concatenate(keys, axis=1)
+        weight = np.concatenate(weights, axis=1)
+        key[weight <= 0.0] = -1
+        weight[key < 0] = 0.0
+        shares = (
+            np.stack([weight[:, [o == r.name for o in owners]].sum(axis=1) for r in reports], axis=1)
+            if reports
+            else np.zeros((count, 0))
+        )
+        return self._finish(
+            queries,
+            key,
+            weight,
+            owners,
+            cull,
+            joint,
+            any_outside,
+            hull_points,
+            reports,
+            shares,
+            layer_outside,
+        )
+
+    def _finish(
+        self,
+        queries: FloatArray,
+        key: IntArray,
+        weight: FloatArray,
+        owners: list[str | None],
+        cull: float,
+        joint: str | None,
+        outside: BoolArray,
+        hull_points: FloatArray,
+        reports: list[LayerReport],
+        shares: FloatArray,
+        layer_outside: BoolArray,
+    ) -> BatchEvaluation:
+        count, width = key.shape
+        # Merge: the same clip reached twice counts once, in the column where it came first.
+        for first in range(width):
+            for later in range(first + 1, width):
+                same = (key[:, later] == key[:, first]) & (key[:, first] >= 0)
+                if same.any():
+                    weight[same, first] += weight[same, later]
+                    weight[same, later] = 0.0
+                    key[same, later] = -1
+        # Unitize: drop weights below `cull` of the total, keep the strongest when none is left.
+        total = weight.sum(axis=1, keepdims=True)
+        safe_total = np.where(total > 0.0, total, 1.0)
+        kept = (key >= 0) & (weight / safe_total >= cull)
+        none_kept = ~kept.any(axis=1) & (total[:, 0] > 0.0)
+        if none_kept.any():
+            strongest = np.argmax(np.where(key >= 0, weight, -np.inf), axis=1)
+            kept[none_kept, strongest[none_kept]] = True
+        weight = np.where(kept, weight, 0.0)
+        key = np.where(kept, key, -1)
+        kept_total = weight.sum(axis=1, keepdims=True)
+        weight = weight / np.where(kept_total > 0.0, kept_total, 1.0)
+        # Heaviest first; ties keep their order (Python's sorted is stable, so is this).
+        order = np.argsort(np.where(key >= 0, -weight, np.inf), axis=1, kind="stable")
+        key = np.take_along_axis(key, order, axis=1)
+        weight = np.take_along_axis(weight, order, axis=1)
+        owner_array = np.array(owners, dtype=object)[order]
+        # Sync: each stride lasts the weighted-average stride of the clips that have one.
+        cycles = np.array([c.cycle for c in self._clips] + [math.nan])[key]
+        no_gait = np.array([c.no_gait for c in self._clips] + [False])[key]
+        known = (key >= 0) & ~np.isnan(cycles)
+        known_weight = np.where(known, weight, 0.0).sum(axis=1)
+        blended_sum = np.where(known, weight * np.nan_to_num(cycles), 0.0).sum(axis=1)
+        blended = np.where(
+            known_weight > 0.0, blended_sum / np.where(known_weight > 0.0, known_weight, 1.0), np.nan
+        )
+        has_blend = ~np.isnan(blended) & (blended != 0.0)
+        rates = np.where(
+            known & has_blend[:, None],
+            cycles / np.where(has_blend, blended, 1.0)[:, None],
+            np.where(no_gait, 1.0, np.nan),
+        )
+        rates[key < 0] = np.nan
+        width_used = int((key >= 0).sum(axis=1).max()) if count else 0
+        return BatchEvaluation(
+            queries=queries,
+            clips=[c.sample for c in self._clips],
+            clip_index=key[:, :width_used],
+            weights=weight[:, :width_used],
+            entry_layer=owner_array[:, :width_used],
+            playback_rates=rates[:, :width_used],
+            cycle_lengths=np.where(key >= 0, cycles, np.nan)[:, :width_used],
+            outside_hull=outside,
+            hull_points=hull_points,
+            cycle_length=blended,
+            layer_reports=reports,
+            layer_shares=shares,
+            layer_outside=layer_outside,
+            joint=joint,
+            cull=cull,
+            dimension=self.dimension,
+        )
+
+
+def _style_weights(
+    samples: Sequence[StyleSampleDoc], values: FloatArray
+) -> tuple[IntArray, FloatArray, BoolArray]:
+    """`evaluate.style_weights` for every value: (sample indices (Q, 2), weights, clamped)."""
+    order = np.argsort([s.position[0] for s in samples], kind="stable")
+    positions = np.array([samples[i].position[0] for i in order], dtype=np.float64)
+    count = len(values)
+    indices = np.full((count, 2), -1, dtype=np.int64)
+    weights = np.zeros((count, 2))
+    low_end = (values <= positions[0]) | (len(positions) == 1)
+    high_end = ~low_end & (values >= positions[-1])
+    between = ~low_end & ~high_end
+    clamped = (low_end & (values < positions[0])) | (high_end & (values > positions[-1]))
+    indices[low_end, 0], weights[low_end, 0] = order[0], 1.0
+    indices[high_end, 0], weights[high_end, 0] = order[-1], 1.0
+    if between.any():
+        upper = np.searchsorted(positions, values[between], side="right")
+        low, high = positions[upper - 1], positions[upper]
+        t = (values[between] - low) / (high - low)
+        indices[between, 0], weights[between, 0] = order[upper - 1], 1.0 - t
+        indices[between, 1], weights[between, 1] = order[upper], t
+    indices[weights <= 0.0] = -1
+    weights[indices < 0] = 0.0
+    return indices, weights, clamped
+
+
+def evaluate_many(
+    doc: BlendSpaceDocument,
+    points: FloatArray,
+    *,
+    layers: Mapping[str, float] | None = None,
+    cull: float = DEFAULT_CULL,
+    joint: str | None = None,
+) -> BatchEvaluation:
+    """`evaluate` at every row of ``points`` (Q, 2), axis units. Build a `BatchEvaluator` once
+    instead when the same document answers several batches."""
+    return BatchEvaluator(doc)(points, layers=layers, cull=cull, joint=joint)

@@ -7,6 +7,7 @@ Normalised space maps each axis range to 0..100 (Unreal normalises by min/max th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,24 +62,124 @@ def barycentric(points: FloatArray, triangle: FloatArray) -> FloatArray:
 
 def locate(points: FloatArray, vertices: FloatArray, triangles: IntArray) -> tuple[IntArray, FloatArray]:
     """For each query point: the index of a triangle containing it (-1 if none) and its
-    barycentric weights (NaN rows outside). Points on a shared edge go to the first triangle.
+    barycentric weights (NaN rows outside). Points on a shared edge go to the first triangle
     """
     points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if len(points) * len(triangles) >= _LOCATOR_WORK:
+        return TriangleLocator(vertices, triangles).locate(points)
+    return _locate_each(points, vertices, triangles)
+
+
+# Above this many point-triangle tests, indexing the mesh first pays for itself.
+_LOCATOR_WORK = 200_000
+_INSIDE_TOLERANCE = 1e-9
+
+
+def _locate_each(
+    points: FloatArray, vertices: FloatArray, triangles: IntArray
+) -> tuple[IntArray, FloatArray]:
+    """`locate` by testing the triangles in order: the first that holds a point takes it."""
     found = np.full(len(points), -1, dtype=np.int64)
     weights = np.full((len(points), 3), np.nan)
-    tolerance = 1e-9
-    for index, tri in enumerate(np.asarray(triangles, dtype=np.int64)):
+    for index, tri in enumerate(triangles):
         pending = found < 0
         if not pending.any():
             break
         w = barycentric(points[pending], vertices[tri])
-        inside = np.all(w >= -tolerance, axis=1)
+        inside = np.all(w >= -_INSIDE_TOLERANCE, axis=1)
         if inside.any():
             rows = np.flatnonzero(pending)[inside]
             found[rows] = index
             clipped = np.clip(w[inside], 0.0, None)
             weights[rows] = clipped / clipped.sum(axis=1, keepdims=True)
     return found, weights
+
+
+class TriangleLocator:
+    """Point location in a fixed triangulation, for many queries at once, with `locate`'s
+    answers (the first triangle that holds a point, within the same tolerance).
+
+    The triangles are bucketed by bounding box into a uniform grid of about four cells
+    per triangle; a query tests only the triangles of its cell, all queries together in one
+    vectorised pass, so locating Q points among T triangles costs about T + Q work instead of
+    T x Q. Any triangulation works (a hand-edited document's too), no Delaunay property assumed.
+    """
+
+    def __init__(self, vertices: FloatArray, triangles: IntArray):
+        self.vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+        self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        corners = self.vertices[self.triangles]  # (T, 3, 2)
+        self.origin = corners[:, 0]
+        self.edge_b = corners[:, 1] - corners[:, 0]
+        self.edge_c = corners[:, 2] - corners[:, 0]
+        self.den = self.edge_b[:, 0] * self.edge_c[:, 1] - self.edge_c[:, 0] * self.edge_b[:, 1]
+        count = len(self.triangles)
+        self.cells = max(1, int(2.0 * math.sqrt(count)))  # about 4 cells per triangle: few candidates
+        if not count:
+            self.low, self.high, self.size = np.zeros(2), np.zeros(2), np.ones(2)
+            self.cell_start = np.zeros(2, dtype=np.int64)
+            self.cell_triangles = np.zeros(0, dtype=np.int64)
+            return
+        # Bounding boxes grown by more than the inside tolerance, so a point on an edge is in a
+        # cell of every triangle that holds it.
+        margin = 1e-7
+        tri_low, tri_high = corners.min(axis=1) - margin, corners.max(axis=1) + margin
+        self.low, self.high = tri_low.min(axis=0), tri_high.max(axis=0)
+        self.size = np.maximum(self.high - self.low, 1e-12) / self.cells
+        first_cell, last_cell = self._cell(tri_low), self._cell(tri_high)
+        wide = last_cell[:, 0] - first_cell[:, 0] + 1
+        per_triangle = wide * (last_cell[:, 1] - first_cell[:, 1] + 1)
+        owner = np.repeat(np.arange(count), per_triangle)
+        step = np.arange(int(per_triangle.sum())) - (np.cumsum(per_triangle) - per_triangle)[owner]
+        cx = first_cell[owner, 0] + step % wide[owner]
+        cy = first_cell[owner, 1] + step // wide[owner]
+        cell = cy * self.cells + cx
+        order = np.lexsort((owner, cell))  # by cell, then by triangle index ("first triangle")
+        self.cell_triangles = owner[order]
+        self.cell_start = np.searchsorted(cell[order], np.arange(self.cells * self.cells + 1))
+
+    def _cell(self, points: FloatArray) -> IntArray:
+        index = np.floor((points - self.low) / self.size).astype(np.int64)
+        clipped: IntArray = np.clip(index, 0, self.cells - 1)
+        return clipped
+
+    def barycentric(self, points: FloatArray, tris: IntArray) -> FloatArray:
+        """Barycentric weights (Q, 3) of ``points[q]`` in triangle ``tris[q]`` (NaN: degenerate)."""
+        offset = points - self.origin[tris]
+        eb, ec, den = self.edge_b[tris], self.edge_c[tris], self.den[tris]
+        flat = np.abs(den) < _EPS
+        safe = np.where(flat, 1.0, den)
+        wb = (offset[:, 0] * ec[:, 1] - ec[:, 0] * offset[:, 1]) / safe
+        wc = (eb[:, 0] * offset[:, 1] - offset[:, 0] * eb[:, 1]) / safe
+        weights = np.stack([1.0 - wb - wc, wb, wc], axis=-1)
+        weights[flat] = np.nan
+        return weights
+
+    def locate(self, points: FloatArray) -> tuple[IntArray, FloatArray]:
+        """As `locate`: (triangle index or -1, barycentric weights or NaN) per point."""
+        points = np.atleast_2d(np.asarray(points, dtype=np.float64))
+        found = np.full(len(points), -1, dtype=np.int64)
+        weights = np.full((len(points), 3), np.nan)
+        if not len(self.triangles) or not len(points):
+            return found, weights
+        within = np.all((points >= self.low) & (points <= self.high), axis=1)
+        cell = self._cell(points) @ np.array([1, self.cells])
+        counts = np.where(within, self.cell_start[cell + 1] - self.cell_start[cell], 0)
+        query = np.repeat(np.arange(len(points)), counts)
+        slot = (
+            self.cell_start[cell][query] + np.arange(int(counts.sum())) - (np.cumsum(counts) - counts)[query]
+        )
+        candidate = self.cell_triangles[slot]
+        w = self.barycentric(points[query], candidate)
+        inside = np.flatnonzero(np.all(w >= -_INSIDE_TOLERANCE, axis=1))
+        # Candidates of a query come in triangle order: its first inside one is `locate`'s.
+        hit_queries, first = np.unique(query[inside], return_index=True)
+        chosen = inside[first]
+        clipped = np.clip(w[chosen], 0.0, None)
+        found[hit_queries] = candidate[chosen]
+        weights[hit_queries] = clipped / clipped.sum(axis=1, keepdims=True)
+        return found, weights
 
 
 def closest_point_on_segment(point: FloatArray, a: FloatArray, b: FloatArray) -> tuple[FloatArray, float]:

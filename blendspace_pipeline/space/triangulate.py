@@ -24,15 +24,17 @@ class Triangulation:
 
 def triangulate(normalised: FloatArray) -> Triangulation:
     """Triangles over sample indices of ``normalised`` positions (N, 2), each axis 0..100."""
-    points = np.asarray(normalised, dtype=np.float64)
-    keys = [tuple(np.round(p, 6)) for p in points]
-    first_of: dict[tuple[float, ...], int] = {}
-    groups: dict[int, list[int]] = {}
-    for index, key in enumerate(keys):
-        owner = first_of.setdefault(key, index)
-        groups.setdefault(owner, []).append(index)
-    unique = sorted(groups)
-    duplicates = [members for members in groups.values() if len(members) > 1]
+    points = np.asarray(normalised, dtype=np.float64).reshape(-1, 2)
+    # Positions equal to 6 decimals are one (+ 0.0 makes -0.0 and 0.0 the same bytes for unique).
+    rounded = np.round(points, 6) + 0.0
+    if len(points):
+        _, first, inverse = np.unique(rounded, axis=0, return_index=True, return_inverse=True)
+        owner = first[inverse.reshape(-1)]  # the first sample at each sample's position
+    else:
+        owner = np.zeros(0, dtype=np.int64)
+    unique = sorted(int(i) for i in np.unique(owner))
+    counts = np.bincount(owner, minlength=len(points)) if len(points) else np.zeros(0, dtype=np.int64)
+    duplicates = [np.flatnonzero(owner == i).tolist() for i in unique if counts[i] > 1]
     if len(unique) < 3:
         return Triangulation([], duplicates, f"only {len(unique)} distinct position(s); a 2D space needs 3")
     distinct = points[unique]
@@ -44,19 +46,25 @@ def triangulate(normalised: FloatArray) -> Triangulation:
     from scipy.spatial import Delaunay  # local import: scipy loads only when a build triangulates
 
     mesh = Delaunay(distinct)
-    triangles = [_canonical(tuple(unique[i] for i in simplex), points) for simplex in mesh.simplices]
-    triangles = [tri for tri in triangles if _area(points[list(tri)]) > 1e-9]
-    return Triangulation(sorted(triangles), duplicates)
+    return Triangulation(_canonical_triangles(np.asarray(unique)[mesh.simplices], points), duplicates)
 
 
-def _area(corners: FloatArray) -> float:
-    (ax, ay), (bx, by), (cx, cy) = corners
-    return float(0.5 * ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay)))
+def _canonical_triangles(triangles: np.ndarray, points: FloatArray) -> list[tuple[int, int, int]]:
+    """Counter-clockwise, starting at the smallest index, degenerate ones dropped, sorted."""
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3).copy()
+    area = _areas(points, tris)
+    clockwise = area < 0
+    tris[clockwise, 1], tris[clockwise, 2] = tris[clockwise, 2], tris[clockwise, 1].copy()
+    start = np.argmin(tris, axis=1)
+    rotated = np.take_along_axis(tris, (start[:, None] + np.arange(3)[None, :]) % 3, axis=1)
+    rotated = rotated[np.abs(area) > 1e-9]
+    return sorted((int(a), int(b), int(c)) for a, b, c in rotated.tolist())
 
 
-def _canonical(tri: tuple[int, ...], points: FloatArray) -> tuple[int, int, int]:
-    a, b, c = (int(i) for i in tri)
-    if _area(points[[a, b, c]]) < 0:
-        b, c = c, b
-    rotations = [(a, b, c), (b, c, a), (c, a, b)]
-    return min(rotations)
+def _areas(points: FloatArray, tris: np.ndarray) -> FloatArray:
+    """Signed areas of triangles ``tris`` (T, 3) over ``points``: positive counter-clockwise."""
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    area: FloatArray = 0.5 * (
+        (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    )
+    return area

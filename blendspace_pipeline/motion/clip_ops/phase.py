@@ -140,10 +140,61 @@ def _sinusoid_fit(signal: FloatArray, times: FloatArray, frequencies: FloatArray
     return fit
 
 
+def _chirp_z(signal: FloatArray, start: float, step: float, count: int) -> np.ndarray:
+    """``sum_n signal[n] exp(-2 pi i (start + k step) n)`` for k < count (frequencies in cycles per
+    sample), by Bluestein's algorithm: three FFTs of about ``len(signal) + count`` points instead of
+    the ``len(signal) * count`` products of evaluating each frequency on its own."""
+    n = len(signal)
+    size = 1 << int(np.ceil(np.log2(n + count - 1)))
+    k = np.arange(max(n, count), dtype=np.float64)
+    # exp(-i pi step k^2): k^2 taken modulo 2/step would lose nothing, but float64 holds k^2
+    # exactly far beyond any clip, so the chirp is computed directly.
+    chirp = np.exp(-1j * np.pi * step * k * k)
+    weighted = signal * np.exp(-2j * np.pi * start * k[:n]) * chirp[:n]
+    kernel = np.zeros(size, dtype=np.complex128)
+    kernel[:count] = np.conj(chirp[:count])
+    kernel[size - n + 1 :] = np.conj(chirp[1:n][::-1])
+    spectrum = np.fft.ifft(np.fft.fft(weighted, size) * np.fft.fft(kernel))[:count]
+    result: np.ndarray = spectrum * chirp[:count]
+    return result
+
+
+def _sinusoid_fit_grid(signal: FloatArray, start: float, step: float, count: int) -> FloatArray:
+    """`_sinusoid_fit` on the evenly spaced frequencies ``start + k step`` (cycles per sample),
+    all at once. The fit needs, per frequency, the signal's cosine and sine sums and the sums of
+    cos, sin, cos^2, sin^2 and cos sin over the samples: the first two are the signal's Fourier
+    transform there, the others the transform of a constant at that frequency and at twice it,
+    so a chirp-z transform gives every grid point in n log n instead of n per frequency."""
+    n = len(signal)
+    centred = signal - signal.mean()
+    total = float(centred @ centred)
+    if total <= 0.0:
+        return np.zeros(count)
+    y = _chirp_z(centred, start, step, count)
+    ones = np.ones(n)
+    s1 = _chirp_z(ones, start, step, count)  # sum cos = Re, sum sin = -Im
+    s2 = _chirp_z(ones, 2.0 * start, 2.0 * step, count)  # the same at twice the frequency
+    yc, ys = y.real, -y.imag  # the centred signal sums to zero, so its projection needs no mean
+    mc, ms = s1.real / n, -s1.imag / n
+    cc = 0.5 * (n + s2.real) - n * mc * mc  # cos^2 = (1 + cos 2x) / 2, less the mean's share
+    ss = 0.5 * (n - s2.real) - n * ms * ms
+    cs = 0.5 * -s2.imag - n * mc * ms  # cos sin = sin(2x) / 2
+    det = cc * ss - cs * cs
+    # Only a nearly collinear cos/sin pair (a frequency near 0 or Nyquist) has a tiny determinant;
+    # it is a difference of sums of order n^2, so the floor scales with n^2 to stay above rounding.
+    floor = 1e-12 * float(n) ** 2
+    safe = np.where(det > floor, det, 1.0)
+    explained = np.where(det > floor, (ss * yc * yc - 2.0 * cs * yc * ys + cc * ys * ys) / safe, 0.0)
+    fit: FloatArray = explained / total
+    return fit
+
+
 def _stride_frequency(signal: FloatArray, fps: float) -> tuple[float, float]:
-    """(strides per second, fit) of the best sinusoid: a coarse grid on the signal thinned to
-    about 30 samples a second (strides are slower than 4 Hz), refined twice on all of it; the
-    grid is evaluated in blocks so a minute of 120 fps mocap needs little memory."""
+    """(strides per second, fit) of the best sinusoid: a coarse grid (a fiftieth of a stride over
+    the whole clip) on the signal thinned to about 30 samples a second (strides are slower than
+    4 Hz), refined twice on all of it. The grid's size grows with the clip's length, so it is
+    evaluated by a chirp-z transform (`_sinusoid_fit_grid`): n log n, where fitting each
+    frequency on its own cost n per frequency, quadratic in the clip's length."""
     frames = len(signal)
     duration = (frames - 1) / fps
     low = MIN_CYCLES / duration
@@ -153,11 +204,10 @@ def _stride_frequency(signal: FloatArray, fps: float) -> tuple[float, float]:
     thin = max(1, int(fps // 30))
     times = np.arange(frames) / fps
     step = 0.02 / duration  # a fiftieth of a stride over the whole clip
-    grid = np.arange(low, high + step, step)
-    fits = np.concatenate(
-        [_sinusoid_fit(signal[::thin], times[::thin], grid[i : i + 256]) for i in range(0, len(grid), 256)]
-    )
-    best = float(grid[int(np.argmax(fits))])
+    count = len(np.arange(low, high + step, step))
+    rate = fps / thin  # samples per second of the thinned signal
+    fits = _sinusoid_fit_grid(signal[::thin], low / rate, step / rate, count)
+    best = low + step * int(np.argmax(fits))
     for _refinement in range(2):
         grid = np.linspace(max(low, best - step), min(high, best + step), 41)
         best = float(grid[int(np.argmax(_sinusoid_fit(signal, times, grid)))])

@@ -1,0 +1,124 @@
+"""Stages after measurement at studio scale: 10,000 samples through rules, document and writers.
+
+    python benchmarks/bench_scale.py [--samples 10000] [--small 100]
+
+Measuring 10,000 real clips would take minutes and is not what this measures, so each clip is a
+tiny file whose measurement is put in the cache first (features spread over the turn-rate x
+speed space: every rule has work, as in a real library). Then, in one process, the build's own
+stages run on it: manifest + cache lookups, placement + triangulation, the rules, the document,
+and every writer (JSON, USD, HTML, PNG). Each stage is timed at ``--small`` samples (the
+baseline) and at ``--samples``, and the ratio of the two is printed next to what linear scaling
+would give (samples / small); the goal is <= 3 s per stage at 10,000. The JSON and HTML sizes
+are printed too. Times are the process's CPU time (`time.process_time`): on a shared machine
+wall-clock time mostly measures the neighbours. Nothing here asserts a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blendspace_pipeline.checks.rule_engine import run_rules
+from blendspace_pipeline.manifest import load_manifest
+from blendspace_pipeline.manifest.paths import resolve_clip_files
+from blendspace_pipeline.motion.measure import Measurement
+from blendspace_pipeline.pipeline import cache
+from blendspace_pipeline.pipeline.measure_stage import measure_files, rig_settings
+from blendspace_pipeline.pipeline.outputs import _writers
+from blendspace_pipeline.pipeline.to_document import to_document
+from blendspace_pipeline.space.model import assemble
+
+
+def write_project(folder: Path, count: int, seed: int = 3) -> Path:
+    """``count`` stand-in clip files with cached measurements, and a manifest globbing them."""
+    rng = np.random.default_rng(seed)
+    clips = folder / "clips"
+    clips.mkdir(parents=True)
+    manifest = folder / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: studio\nclips:\n  - path: clips/*.bvh\n"
+        "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 180}\n"
+        "  y: {feature: speed, min: -3, max: 6, divisions: 180}\n",
+        encoding="utf-8",
+    )
+    settings = rig_settings(load_manifest(manifest).model.skeleton)
+    for index in range(count):
+        path = clips / f"take_{index:05d}.bvh"
+        path.write_text(f"stand-in {index}\n", encoding="utf-8")
+        turn, speed = float(rng.uniform(-175, 175)), float(rng.uniform(-2.8, 5.8))
+        features = {
+            "speed": speed,
+            "forward_speed": speed,
+            "lateral_speed": float(rng.normal(0.0, 0.05)),
+            "direction": 0.0 if speed >= 0 else 180.0,
+            "turn_rate": turn,
+            "turn": turn * 1.2,
+            "duration": 1.2,
+            "displacement_speed": abs(speed),
+        }
+        measurement = Measurement(
+            features=features, meters_per_unit=0.01, units_source="file", up_axis="y", root="Hips",
+            facing="hips", frames=145, fps=120.0, gait_period=1.0 if abs(speed) > 0.3 else None,
+        )  # fmt: skip
+        cache.store(cache.cache_key(path, settings.cache_key(), None), [(path.stem, measurement)])
+    return manifest
+
+
+def timed(action: Callable[[], Any]) -> tuple[float, Any]:
+    """CPU seconds of this process (a shared, loaded machine makes wall time meaningless)."""
+    start = time.process_time()
+    result = action()
+    return time.process_time() - start, result
+
+
+def run_stages(manifest: Path, out: Path) -> dict[str, float]:
+    seconds: dict[str, float] = {}
+    loaded = load_manifest(manifest)
+    t, clips = timed(lambda: measure_files(loaded, resolve_clip_files(loaded)))
+    seconds["manifest + cached measurements"] = t
+    t, space = timed(lambda: assemble(loaded, clips))
+    seconds["placement + triangulation"] = t
+    t, _ = timed(lambda: run_rules(space))
+    seconds["rules"] = t
+    t, doc = timed(lambda: to_document(space, out))
+    seconds["document"] = t
+    out.mkdir(parents=True, exist_ok=True)
+    for name, (suffix, writer) in _writers(space).items():
+        t, _ = timed(lambda writer=writer, suffix=suffix: writer(doc, out / f"{space.name}{suffix}"))
+        seconds[f"write {name}"] = t
+    return seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--samples", type=int, default=10_000)
+    parser.add_argument("--small", type=int, default=100)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        os.environ["BLENDSPACE_CACHE_DIR"] = str(root / "cache")
+        results = []
+        for count in (args.small, args.samples):
+            manifest = write_project(root / f"p{count}", count)
+            results.append(run_stages(manifest, root / f"out{count}"))
+            sizes = {p.suffix: p.stat().st_size / 1e6 for p in (root / f"out{count}").iterdir()}
+            print(f"{count} samples: " + ", ".join(f"{k} {v:.2f} MB" for k, v in sorted(sizes.items())))
+        small, large = results
+        linear = args.samples / args.small
+        print(f"{'stage':<34} {args.small:>8} {args.samples:>8}   ratio (linear: {linear:.0f}x)")
+        for stage, big in large.items():
+            print(f"{stage:<34} {small[stage]:7.3f}s {big:7.3f}s   {big / max(small[stage], 1e-6):7.0f}x")
+        print(f"{'total':<34} {sum(small.values()):7.3f}s {sum(large.values()):7.3f}s")
+
+
+if __name__ == "__main__":
+    main()

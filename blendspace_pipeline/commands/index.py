@@ -1,0 +1,46 @@
+"""`blendspace index LIBRARY_DIR... --store STORE [--scheduler ADDRESS]`: measure a mocap library
+into a shared store (per-clip measurements + a Parquet table) on Dask; see `pipeline.library`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, UsageError
+
+HELP = "measure a whole mocap library into a shared store of features (on Dask)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("libraries", nargs="+", type=Path, metavar="LIBRARY_DIR", help="folder(s) of clips")
+    parser.add_argument("--store", required=True, help="store location: a folder or any fsspec URL")
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="a Dask scheduler (default: DASK_SCHEDULER_ADDRESS, else an embedded local cluster)",
+    )
+    parser.add_argument("--workers", type=int, default=2, help="local cluster workers (default 2)")
+
+
+def run(args: argparse.Namespace) -> int:
+    missing = [str(folder) for folder in args.libraries if not folder.is_dir()]
+    if missing:
+        raise UsageError(f"not a folder: {', '.join(missing)}", hint="give the library's clip folders")
+    if args.workers < 1:
+        raise UsageError(f"--workers {args.workers}: need at least 1", hint="e.g. --workers 2")
+    from blendspace_pipeline.pipeline.library import index_library
+
+    start = time.perf_counter()
+    rows, errors = index_library(args.libraries, args.store, scheduler=args.scheduler, workers=args.workers)
+    seconds = time.perf_counter() - start
+    for error in errors:
+        sys.stderr.write(f"{error['path']}: {error['error']}\n")
+    files = len({row["path"] for row in rows})
+    sys.stdout.write(
+        f"indexed {len(rows)} animation(s) from {files} file(s) into {args.store} in {seconds:.1f} s"
+        + (f"; {len(errors)} file(s) could not be measured (see stderr)" if errors else "")
+        + "\n"
+    )
+    return EXIT_DIAGNOSTICS if errors else EXIT_OK

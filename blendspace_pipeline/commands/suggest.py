@@ -1,0 +1,127 @@
+"""`blendspace suggest MANIFEST --library STORE [--format text|json]`: library clips that would
+fill the manifest's placeholders.
+
+For every placeholder the rules put in the space, the indexed clips of the same skeleton (the
+same joints as the manifest's clips) nearest to it in the normalised space, with their measured
+features, and a manifest patch (`clips:` entries) that adds the best one of each placeholder it
+fills. A clip fills a placeholder when it lies within `thresholds.too_close` (normalised) of it,
+the distance at which the rules count a position as taken; farther candidates are listed as the
+nearest the library has, not patched in. Clips already in the manifest are not proposed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from blendspace_pipeline.errors import EXIT_OK
+
+HELP = "propose library clips (from `blendspace index`) that fill a manifest's placeholders"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("manifest", type=Path, metavar="MANIFEST", help="manifest YAML file")
+    parser.add_argument(
+        "--library", required=True, metavar="STORE", help="a store written by `blendspace index`"
+    )
+    parser.add_argument("--count", type=int, default=3, help="candidates per placeholder (default 3)")
+    parser.add_argument("--format", choices=("text", "json"), default="text", help="output format")
+
+
+def run(args: argparse.Namespace) -> int:
+    from blendspace_pipeline.pipeline.analysis import analyse
+    from blendspace_pipeline.pipeline.library import read_index, skeleton_signature
+
+    space = analyse(args.manifest)
+    rows = read_index(args.library)
+    skeletons = {skeleton_signature(s.clip.measurement.joint_names) for s in space.samples if not s.generated}
+    in_manifest = {str(Path(s.clip.source).resolve()) for s in space.samples}
+    candidates = [r for r in rows if r["skeleton"] in skeletons and r["path"] not in in_manifest]
+    axes = space.axes
+    features = [f"feature.{axis.feature}" for axis in axes]
+    spans = [axis.maximum - axis.minimum for axis in axes]
+    reach = float(space.manifest.model.thresholds.too_close)
+
+    def distance(row: dict[str, Any], position: tuple[float, float]) -> float:
+        values = [row.get(feature) for feature in features]
+        if any(v is None for v in values):
+            return math.inf
+        offsets = [100.0 * (float(v or 0.0) - p) / s for v, p, s in zip(values, position, spans, strict=True)]
+        return math.hypot(*offsets)
+
+    proposals: list[dict[str, Any]] = []
+    for mark in space.placeholders:
+        ranked = sorted(candidates, key=lambda row: (distance(row, mark.position), row["path"], row["name"]))
+        best = [r for r in ranked[: args.count] if math.isfinite(distance(r, mark.position))]
+        proposals.append(
+            {
+                "position": list(mark.position),
+                "priority": mark.priority,
+                "rule": mark.rule,
+                "reason": mark.reason,
+                "candidates": [
+                    {
+                        "path": row["path"],
+                        "name": row["name"],
+                        "distance": round(distance(row, mark.position), 6),
+                        "fills": distance(row, mark.position) < reach,
+                        "features": {
+                            k.removeprefix("feature."): v
+                            for k, v in row.items()
+                            if k.startswith("feature.") and v is not None
+                        },
+                    }
+                    for row in best
+                ],
+            }
+        )
+    patch = _patch(args.manifest, proposals)
+    if args.format == "json":
+        sys.stdout.write(
+            json.dumps({"manifest": str(args.manifest), "placeholders": proposals, "patch": patch}, indent=2)
+            + "\n"
+        )
+        return EXIT_OK
+    lines = [
+        f"{args.manifest}: {len(proposals)} placeholder(s), {len(candidates)} library clip(s) of its skeleton"
+    ]
+    for proposal in proposals:
+        x, y = proposal["position"]
+        lines.append(f"  {proposal['priority']} ({proposal['rule']}) at ({x:g}, {y:g}): {proposal['reason']}")
+        for candidate in proposal["candidates"]:
+            shown = ", ".join(
+                f"{f}={candidate['features'].get(f.removeprefix('feature.'), float('nan')):.3g}"
+                for f in features
+            )
+            lines.append(
+                f"    {candidate['path']} [{candidate['name']}]  distance {candidate['distance']:.3g}  {shown}"
+            )
+        if not proposal["candidates"]:
+            lines.append("    no library clip of this skeleton")
+    if patch:
+        lines.append("manifest patch (add under clips:):")
+        lines += [f"  {line}" for line in patch.splitlines()]
+    sys.stdout.write("\n".join(lines) + "\n")
+    return EXIT_OK
+
+
+def _patch(manifest: Path, proposals: list[dict[str, Any]]) -> str:
+    """`clips:` entries adding the nearest candidate of each placeholder (each file once)."""
+    chosen: dict[str, str] = {}
+    for proposal in proposals:
+        if proposal["candidates"] and proposal["candidates"][0]["fills"]:
+            best = proposal["candidates"][0]
+            chosen.setdefault(best["path"], best["name"])
+    base = manifest.resolve().parent
+    entries = []
+    for path in chosen:
+        try:
+            shown = Path(path).relative_to(base).as_posix()
+        except ValueError:
+            shown = Path(path).as_posix()
+        entries.append(f"- path: {json.dumps(shown)}")
+    return "\n".join(entries) + ("\n" if entries else "")

@@ -1,0 +1,182 @@
+"""A mocap library measured once into a shared, content-addressed store, on Dask.
+
+`index_library` finds every readable clip under the library folders and measures it on a Dask
+cluster: an embedded `LocalCluster` by default, or the studio's scheduler (`--scheduler ADDRESS`
+or `DASK_SCHEDULER_ADDRESS`). Each worker reads and measures its clips and returns one small
+row per animation (features, frames, skeleton signature), never the clip; the parent gathers
+the rows into one table. The store is any fsspec location (a folder, a network share, object
+storage when its fsspec package is installed):
+
+    STORE/clips/<sha256 of the file's bytes>.json   per-clip measurements (the per-clip cache)
+    STORE/index.parquet                             one row per animation, every feature a column
+
+Entries are addressed by content, so a file already in the store (the same bytes, wherever it
+lives) is not measured again, and CI, the farm and workstations share the work. `read_index`
+loads the table back; `suggest` (commands/suggest.py) looks placeholders up in it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from blendspace_pipeline import __version__
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION
+from blendspace_pipeline.readers import read_clips, supported_suffixes
+
+INDEX_NAME = "index.parquet"
+
+
+def skeleton_signature(joint_names: Iterable[str]) -> str:
+    """Clips with the same joints (any order) share a rig: what a suggestion must match."""
+    return hashlib.sha256("\n".join(sorted(joint_names)).encode()).hexdigest()[:16]
+
+
+def find_clips(folders: Sequence[Path]) -> list[Path]:
+    """Every readable clip file under ``folders`` (recursively), sorted, each once."""
+    suffixes = set(supported_suffixes())
+    found = {
+        path.resolve()
+        for folder in folders
+        for path in Path(folder).rglob("*")
+        if path.is_file() and path.suffix.lower() in suffixes
+    }
+    return sorted(found)
+
+
+def _entry_name(digest: str, settings: RigSettings) -> str:
+    # The measurement depends on the tool, the measurement code and the rig settings too.
+    salt = hashlib.sha256(f"{__version__}|{MEASUREMENT_REVISION}|{settings.cache_key()}".encode()).hexdigest()
+    return f"clips/{digest}-{salt[:12]}.json"
+
+
+def measure_into_store(path: str, store: str, settings: RigSettings) -> list[dict[str, Any]]:
+    """Worker task: the rows of one clip file, from the store when its bytes are known there,
+    else measured and written to the store. Errors come back as a row with an ``error``."""
+    import fsspec
+
+    fs, root = fsspec.core.url_to_fs(store)
+    try:
+        data = Path(path).read_bytes()
+    except OSError as error:
+        return [{"path": path, "error": f"cannot read: {error}"}]
+    digest = hashlib.sha256(data).hexdigest()
+    entry = f"{root.rstrip('/')}/{_entry_name(digest, settings)}"
+    measured: list[tuple[str, dict[str, Any]]] | None = None
+    if fs.exists(entry):
+        try:
+            with fs.open(entry, "r") as stream:
+                measured = [(item["name"], item["measurement"]) for item in json.load(stream)]
+        except (OSError, ValueError, KeyError, TypeError):
+            measured = None  # a damaged entry is measured again and rewritten
+    if measured is None:
+        try:
+            measured = [(clip.name, asdict(measure(clip, settings))) for clip in read_clips(Path(path))]
+        except Exception as error:  # one bad take must not stop a 100,000-take index
+            return [{"path": path, "error": f"{type(error).__name__}: {error}"}]
+        fs.makedirs(os.path.dirname(entry), exist_ok=True)
+        temporary = f"{entry}.{os.getpid()}.tmp"
+        with fs.open(temporary, "w") as stream:
+            json.dump([{"name": name, "measurement": m} for name, m in measured], stream)
+        fs.mv(temporary, entry)
+    return [_row(path, digest, name, m) for name, m in measured]
+
+
+def _row(path: str, digest: str, name: str, measurement: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "path": path,
+        "digest": digest,
+        "name": name,
+        "skeleton": skeleton_signature(measurement.get("joint_names", [])),
+        "frames": int(measurement["frames"]),
+        "fps": float(measurement["fps"]),
+        "gait_period": measurement.get("gait_period"),
+        "in_place": bool(measurement.get("in_place", False)),
+        **{f"feature.{key}": float(value) for key, value in measurement["features"].items()},
+    }
+
+
+def connect(scheduler: str | None, workers: int) -> Any:
+    """A Dask client: the given scheduler, else DASK_SCHEDULER_ADDRESS, else an embedded local
+    cluster of ``workers`` single-threaded processes (measurement holds the GIL)."""
+    from distributed import Client, LocalCluster
+
+    address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if address:
+        return Client(address)  # type: ignore[no-untyped-call]
+    cluster = LocalCluster(  # type: ignore[no-untyped-call]
+        n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+    )
+    return Client(cluster)  # type: ignore[no-untyped-call]
+
+
+def index_library(
+    folders: Sequence[Path],
+    store: str,
+    *,
+    scheduler: str | None = None,
+    workers: int = 2,
+    settings: RigSettings | None = None,
+    batch: int = 64,
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Measure every clip under ``folders`` into ``store``; (rows, errors). Writes the Parquet
+    table of all rows (previous rows of files no longer found are dropped)."""
+    settings = settings or RigSettings()
+    paths = [str(p) for p in find_clips(folders)]
+    client = connect(scheduler, workers)
+    rows: list[dict[str, Any]] = []
+    errors: list[dict[str, Any]] = []
+    try:
+        # Tasks of `batch` files: per-task overhead stays small next to measuring at 100,000 takes.
+        chunks = [paths[i : i + batch] for i in range(0, len(paths), batch)]
+        futures = client.map(_measure_batch, chunks, store=store, settings=settings, pure=False)
+        for result in client.gather(futures):
+            for row in result:
+                (errors if "error" in row else rows).append(row)
+    finally:
+        cluster = getattr(client, "cluster", None)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    write_index(store, rows)
+    return rows, errors
+
+
+def _measure_batch(paths: list[str], store: str, settings: RigSettings) -> list[dict[str, Any]]:
+    return [row for path in paths for row in measure_into_store(path, store, settings)]
+
+
+def write_index(store: str, rows: list[dict[str, Any]]) -> None:
+    import fsspec
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    fs, root = fsspec.core.url_to_fs(store)
+    fs.makedirs(root, exist_ok=True)
+    columns = sorted({key for row in rows for key in row})
+    table = pa.table({column: [row.get(column) for row in rows] for column in columns})
+    target = f"{root.rstrip('/')}/{INDEX_NAME}"
+    with fs.open(f"{target}.tmp", "wb") as stream:
+        pq.write_table(table, stream)
+    fs.mv(f"{target}.tmp", target)
+
+
+def read_index(store: str) -> list[dict[str, Any]]:
+    """The store's rows (an empty list for a store not indexed yet)."""
+    import fsspec
+    import pyarrow.parquet as pq
+
+    fs, root = fsspec.core.url_to_fs(store)
+    target = f"{root.rstrip('/')}/{INDEX_NAME}"
+    if not fs.exists(target):
+        return []
+    with fs.open(target, "rb") as stream:
+        rows: list[dict[str, Any]] = pq.read_table(stream).to_pylist()
+    return rows

@@ -1,0 +1,186 @@
+"""Build stamps: a `build` or `check` whose inputs and outputs did not move returns at once.
+
+A finished run records, per invocation (command, manifests, options, working folder, tool
+version, measurement revision), what it read and wrote: every input file (manifests, clips,
+layer manifests and clips, the rule modules it ran) and every folder that holds a clip (a file
+added to a globbed folder changes the folder's mtime), each with its size, mtime and SHA-256,
+every output with the same, and what the run printed and its exit code. The next identical
+invocation checks the stamp with stat calls only: when every size and mtime matches, it prints
+the recorded text and returns the recorded exit code without reading a clip or importing the
+pipeline. Content hashes are read only for files whose stat moved (a `touch`, a checkout that
+rewrote the same bytes): unchanged bytes still count as up to date. Anything else (a changed
+byte, a missing output, another tool version) and the command runs as usual, through the
+measurement cache, so an edit re-measures only the clips it touched.
+
+Stamps live in the cache folder (`BLENDSPACE_CACHE_DIR`, `stamps/`), keyed by the invocation:
+the same manifest built to two folders, or checked with and without `--strict`, keeps two.
+`BLENDSPACE_CACHE_DIR=off` switches them off with the cache. Runs that ended in bad input (exit 2)
+or wrote SARIF (its log describes the rules, which a replay would have to load) are not stamped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from blendspace_pipeline import __version__
+from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, cache_dir
+
+STAMP_VERSION = 1
+
+
+@dataclass(frozen=True)
+class FileState:
+    path: str
+    size: int  # -1 for a folder (its size means nothing), -2 for a file that did not exist
+    mtime_ns: int
+    sha256: str  # "" for folders and missing files
+
+
+def invocation_key(command: str, manifests: Sequence[Path], options: dict[str, object]) -> str:
+    """What makes two runs the same: the command, its manifests and options, where it runs."""
+    described = {
+        "command": command,
+        "manifests": [str(Path(m).absolute()) for m in manifests],
+        "options": {k: str(v) for k, v in sorted(options.items())},
+        "cwd": os.getcwd(),
+        "version": __version__,
+        "revision": MEASUREMENT_REVISION,
+        "stamp": STAMP_VERSION,
+    }
+    return hashlib.sha256(json.dumps(described, sort_keys=True).encode()).hexdigest()
+
+
+def _stamp_path(key: str) -> Path | None:
+    folder = cache_dir()
+    return None if folder is None else folder / "stamps" / f"{key}.json"
+
+
+def _digest(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def file_state(path: Path) -> FileState:
+    try:
+        info = path.stat()
+    except OSError:
+        return FileState(str(path), -2, 0, "")
+    if path.is_dir():
+        return FileState(str(path), -1, info.st_mtime_ns, "")
+    return FileState(str(path), info.st_size, info.st_mtime_ns, _digest(path))
+
+
+def _unchanged(state: FileState) -> bool:
+    """Stat first; a file whose size matches but whose mtime moved is compared by content."""
+    path = Path(state.path)
+    try:
+        info = path.stat()
+    except OSError:
+        return state.size == -2
+    if state.size == -1:
+        return info.st_mtime_ns == state.mtime_ns
+    if state.size < 0 or info.st_size != state.size:
+        return False
+    if info.st_mtime_ns == state.mtime_ns:
+        return True
+    try:
+        return _digest(path) == state.sha256
+    except OSError:
+        return False
+
+
+def replay(key: str) -> int | None:
+    """When the stamp for ``key`` is up to date: print what the run printed, return its exit code."""
+    path = _stamp_path(key)
+    if path is None:
+        return None
+    try:
+        stamp: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        files = [FileState(**entry) for entry in stamp["inputs"] + stamp["outputs"]]
+        printed, code = str(stamp["stdout"]), int(stamp["exit_code"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not all(_unchanged(state) for state in files):
+        return None
+    sys.stdout.write(printed)
+    return code
+
+
+def record(key: str, inputs: Iterable[Path], outputs: Iterable[Path], printed: str, exit_code: int) -> None:
+    """Write the stamp of a finished run (atomically; a cache folder that refuses is ignored)."""
+    path = _stamp_path(key)
+    if path is None:
+        return
+    input_paths = sorted({Path(p).absolute() for p in inputs})
+    folders = sorted({p.parent for p in input_paths})
+    stamp = {
+        "version": __version__,
+        "inputs": [asdict(file_state(p)) for p in [*input_paths, *folders]],
+        "outputs": [asdict(file_state(Path(p).absolute())) for p in sorted(set(outputs))],
+        "stdout": printed,
+        "exit_code": exit_code,
+    }
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            json.dump(stamp, stream)
+        os.replace(temporary, path)
+    except OSError:
+        pass  # a read-only or full cache folder must never fail a build
+
+
+class Capture:
+    """Tee of stdout while a command runs, so its stamp can replay exactly what it printed."""
+
+    def __init__(self) -> None:
+        self.parts: list[str] = []
+        self._stream = sys.stdout
+
+    def write(self, text: str) -> int:
+        self.parts.append(text)
+        return self._stream.write(text)
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def __enter__(self) -> Capture:
+        sys.stdout = self
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        sys.stdout = self._stream
+
+    @property
+    def text(self) -> str:
+        return "".join(self.parts)
+
+
+def rule_files(space: object) -> list[Path]:
+    """The source files of the rules a space ran (built-ins and plugins): editing a plugin must
+    rebuild. ``space`` is a `space.model.BlendSpace`; its layers' rules are included."""
+    from blendspace_pipeline.checks.rule_engine import loaded_rules_of
+    from blendspace_pipeline.space.model import BetaSpace, BlendSpace
+
+    assert isinstance(space, BlendSpace)
+    files: list[Path] = []
+    for rule in loaded_rules_of(space).rules.values():
+        module = sys.modules.get(rule.__module__)
+        source = getattr(module, "__file__", None)
+        if source:
+            files.append(Path(source))
+    for layer in space.layer_spaces:
+        if isinstance(layer, BetaSpace):
+            files += rule_files(layer.space)
+    return files

@@ -1,0 +1,126 @@
+"""Build stamps: an unchanged `build`/`check` replays at once, anything that moved runs again,
+and an edit re-measures only the clip it touched."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline import analysis, measure_stage, outputs
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+SPECS = [
+    GaitSpec("idle", duration=1.0),
+    GaitSpec("walk", speed=1.4, duration=1.0),
+    GaitSpec("run", speed=4.0, duration=1.0),
+    GaitSpec("turn", speed=1.4, turn_rate=60.0, duration=1.0),
+]
+
+
+def _project(folder: Path) -> Path:
+    (folder / "clips").mkdir(parents=True)
+    for spec in SPECS:
+        write_bvh_clip(generate(spec), folder / "clips" / f"{spec.name}.bvh")
+    manifest = folder / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: gait\nclips:\n  - path: clips/*.bvh\noutput: {formats: [json, png]}\n",
+        encoding="utf-8",
+    )
+    return manifest
+
+
+class Counter:
+    """Counts real measurements (cache misses) and analyses while a test runs."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.measured: list[str] = []
+        self.analyses = 0
+        measure, analyse = measure_stage.measure, analysis.analyse
+
+        def counting_measure(clip, settings, time_range=None):  # type: ignore[no-untyped-def]
+            self.measured.append(clip.name)
+            return measure(clip, settings, time_range)
+
+        def counting_analyse(*args, **kwargs):  # type: ignore[no-untyped-def]
+            self.analyses += 1
+            return analyse(*args, **kwargs)
+
+        monkeypatch.setattr(measure_stage, "measure", counting_measure)
+        monkeypatch.setattr(analysis, "analyse", counting_analyse)
+        monkeypatch.setattr(outputs, "analyse", counting_analyse)  # `build` holds its own reference
+
+
+def _run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    code = main(argv)
+    return code, capsys.readouterr().out
+
+
+def test_an_unchanged_build_replays_and_anything_that_moved_rebuilds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    manifest = _project(tmp_path)
+    out = tmp_path / "out"
+    argv = ["build", str(manifest), "--out", str(out), "--no-fix"]
+    counter = Counter(monkeypatch)
+    first_code, first = _run(argv, capsys)
+    assert first_code in (0, 1) and "built 4 samples" in first
+    assert sorted(counter.measured) == ["idle", "run", "turn", "walk"] and counter.analyses == 1
+    # Nothing moved: the same text and exit code, no analysis at all.
+    assert _run(argv, capsys) == (first_code, first)
+    assert counter.analyses == 1
+    # A touch (same bytes, new mtime) is still up to date: the content hash says so.
+    clip = tmp_path / "clips" / "walk.bvh"
+    os.utime(clip, ns=(clip.stat().st_atime_ns, clip.stat().st_mtime_ns + 5_000_000_000))
+    assert _run(argv, capsys) == (first_code, first)
+    assert counter.analyses == 1
+    # An edit rebuilds, and re-measures that clip only (the others come from the cache).
+    write_bvh_clip(generate(GaitSpec("walk", speed=1.0, duration=1.0)), clip)
+    counter.measured.clear()
+    _, text = _run(argv, capsys)
+    assert counter.analyses == 2 and counter.measured == ["walk"]
+    assert "built 4 samples" in text
+    # A deleted output rebuilds (and measures nothing).
+    (out / "gait.png").unlink()
+    counter.measured.clear()
+    _run(argv, capsys)
+    assert counter.analyses == 3 and counter.measured == [] and (out / "gait.png").exists()
+    # A new clip in the globbed folder rebuilds with it.
+    write_bvh_clip(
+        generate(GaitSpec("back", speed=1.5, direction=180.0, duration=1.0)), tmp_path / "clips" / "back.bvh"
+    )
+    _, text = _run(argv, capsys)
+    assert counter.analyses == 4 and counter.measured == ["back"] and "built 5 samples" in text
+    # Other options are another invocation: no replay of the text-format stamp.
+    _run([*argv, "--format", "json"], capsys)
+    assert counter.analyses == 5
+
+
+def test_an_unchanged_check_replays_and_an_edited_manifest_runs_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    manifest = _project(tmp_path)
+    counter = Counter(monkeypatch)
+    first = _run(["check", str(manifest)], capsys)
+    assert _run(["check", str(manifest)], capsys) == first
+    assert counter.analyses == 1
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8") + "thresholds: {too_close: 30}\n", encoding="utf-8"
+    )
+    _, text = _run(["check", str(manifest)], capsys)
+    assert counter.analyses == 2 and "too-close" in text and counter.measured.count("walk") == 1
+
+
+def test_bad_input_is_never_stamped(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: x\nclips:\n  - path: missing.bvh\n", encoding="utf-8")
+    counter = Counter(monkeypatch)
+    assert main(["check", str(manifest)]) == 2
+    assert main(["check", str(manifest)]) == 2
+    assert counter.analyses == 2
+    assert "missing.bvh" in capsys.readouterr().err
