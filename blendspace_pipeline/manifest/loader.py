@@ -9,6 +9,7 @@ position and a hint; validation problems are all reported at once (`ManifestProb
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import re
 from collections.abc import Callable
@@ -90,8 +91,68 @@ def load_manifest(path: Path) -> LoadedManifest:
     except ValidationError as error:
         problems = translate(error, raw, lambda key_path: locate_in(tree, key_path))
         raise ManifestProblemsError.from_problems(path, problems) from None
+    _check_limits(model, tree, path)
     _check_hand_positions(model, tree, path)
     return LoadedManifest(path=path, model=model, directory=Path(os.path.abspath(path)).parent, tree=tree)
+
+
+# Hard limits on numbers the schema accepts but no blend space can use: a grid of 10**1000 cells
+# overflows a float, an axis of +-1e308 has no finite width, a unit of 9e18 m is not a rig.
+MAX_DIVISIONS = 100_000
+MAX_AXIS_VALUE = 1e6
+MIN_AXIS_SPAN = 1e-6
+UNIT_RANGE = (1e-6, 1e6)  # metres per file unit
+MAX_CLIP_ENTRIES = 10_000
+
+
+def _check_limits(model: Manifest, tree: CommentedMap, path: Path) -> None:
+    def fail(key_path: KeyPath, message: str, hint: str) -> NoReturn:
+        line, column = locate_in(tree, key_path)
+        raise ManifestError(message, path=path, line=line, column=column, hint=hint)
+
+    for name in ("x", "y"):
+        axis = getattr(model.axes, name)
+        where: KeyPath = ("axes", name)
+        if axis.divisions > MAX_DIVISIONS:
+            fail(
+                (*where, "divisions"),
+                f"axes.{name}.divisions: {_number(axis.divisions)} is more than the limit of {MAX_DIVISIONS:,}",
+                "a few hundred grid intervals are plenty; e.g. divisions: 100",
+            )
+        for end in ("min", "max"):
+            value = getattr(axis, end)
+            if not math.isfinite(value) or abs(value) > MAX_AXIS_VALUE:
+                fail(
+                    (*where, end),
+                    f"axes.{name}.{end}: {value:g} is out of range (|value| <= {MAX_AXIS_VALUE:g})",
+                    "give the axis range in the feature's unit, e.g. min: -180, max: 180",
+                )
+        if axis.max - axis.min < MIN_AXIS_SPAN:
+            fail(
+                (*where, "max"),
+                f"axes.{name}: the range {axis.min:g}..{axis.max:g} is too narrow",
+                "widen the range so clips can differ along it",
+            )
+    settings = [(("skeleton",), model.skeleton)]
+    for index, entry in enumerate(model.clips):
+        own = getattr(entry, "skeleton", None)
+        if own is not None:
+            settings.append((("clips", index, "skeleton"), own))
+    for key_path, skeleton in settings:
+        units = getattr(skeleton, "units", "auto")
+        if isinstance(units, int | float) and not UNIT_RANGE[0] <= units <= UNIT_RANGE[1]:
+            fail(
+                (*key_path, "units"),
+                f"{dotted(key_path)}.units: {_number(units)} metres per unit is out of range "
+                f"({UNIT_RANGE[0]:g}..{UNIT_RANGE[1]:g})",
+                "use a named unit (m, cm, mm, in) or metres per file unit, e.g. units: 0.01 for cm",
+            )
+    if len(model.clips) > MAX_CLIP_ENTRIES:
+        fail(
+            ("clips",),
+            f"the manifest lists {len(model.clips):,} clip entries, more than the limit of {MAX_CLIP_ENTRIES:,}",
+            "use globs (clips/*.bvh) or split the blend space",
+        )
 
 
 def _check_hand_positions(model: Manifest, tree: CommentedMap, path: Path) -> None:
@@ -565,6 +626,8 @@ def _suggest(word: str, choices: list[str], label: str) -> str:
 
 
 def _number(value: object) -> str:
+    if isinstance(value, int) and abs(value) >= 10**15:
+        return f"a {len(str(abs(value)))}-digit number"  # never print 1,000 digits into a message
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 

@@ -31,7 +31,8 @@ def cache_dir() -> Path | None:
 
 # Bumped whenever the same clip would measure differently (a new feature, a changed detection),
 # so a developer's or CI's cache never serves results of older code under an unchanged version.
-MEASUREMENT_REVISION = 2
+# 3: readers refuse out-of-range data (frame rate, angles, sizes) that revision 2 measured.
+MEASUREMENT_REVISION = 3
 
 
 def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | None) -> str:

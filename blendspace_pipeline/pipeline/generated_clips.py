@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
 from blendspace_pipeline.space.model import BlendSpace
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
@@ -34,12 +35,12 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
     measured = generated.measured
     units = measured.measurement.meters_per_unit if measured else clip.meters_per_unit
     up = measured.measurement.up_axis if measured else clip.up_axis
-    written = [folder / f"{clip.name}.usda"]
+    written = [folder / f"{safe_file_stem(clip.name)}.usda"]
     write_usd_clip(clip, written[0], meters_per_unit=units, up_axis=up)
     template = bvh_template(space, generated)
     if template is not None:
         from blendspace_pipeline.writers.bvh import write_bvh_clip
 
-        written.append(folder / f"{clip.name}.bvh")
+        written.append(folder / f"{safe_file_stem(clip.name)}.bvh")
         write_bvh_clip(clip, written[1], template=template)
     return written

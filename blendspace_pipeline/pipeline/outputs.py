@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import write_generated_clip
@@ -129,7 +130,7 @@ def _write_outputs(
     for sub, _, folder in made:
         for sample in sub.samples:
             if sample.generated:
-                sample.clip.source = out_dir / folder / f"{sample.name}.usda"
+                sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}.usda"
     document = to_document(space, out_dir)
     staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
     try:

@@ -33,6 +33,7 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton, topological_order
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.limits import confined, current_roots, read_regular_file
 
 SUFFIXES = (".gltf", ".glb")
 
@@ -108,10 +109,7 @@ class _Document:
 
     @classmethod
     def load(cls, path: Path) -> _Document:
-        try:
-            data = path.read_bytes()
-        except OSError as error:
-            raise _error(path, f"cannot read the file: {error.strerror or error}", "check the path") from None
+        data = read_regular_file(path, what="glTF file")
         if data[:4] == _GLB_MAGIC:
             root, glb_bin = _parse_glb(path, data)
         elif path.suffix.lower() == ".glb":
@@ -257,13 +255,13 @@ class _Document:
                 f"{pointer} refers to a remote file ({uri})",
                 "download the buffer beside the .gltf",
             )
-        file = self.path.parent / unquote(uri)
+        file = confined(self.path, unquote(uri), current_roots(self.path), what=f"{pointer} uri")
         try:
-            return file.read_bytes()
-        except OSError:
+            return read_regular_file(file, what=f"external buffer {uri!r}")
+        except ClipReadError as error:
             raise _error(
                 self.path,
-                f"{pointer}: the external buffer {uri!r} cannot be read",
+                f"{pointer}: {error.message}",
                 "keep the .bin file beside the .gltf, or export a single .glb",
             ) from None
 
@@ -466,6 +464,8 @@ def _parse_json(path: Path, data: bytes, offset: int) -> dict[str, Any]:
         root = json.loads(data.decode("utf-8-sig"))
     except UnicodeDecodeError:
         raise _error(path, f"not a glTF file: the JSON is not UTF-8 text{where}", _TRUNCATED) from None
+    except RecursionError:
+        raise _error(path, f"the glTF JSON nests too deeply to be a glTF file{where}", _TRUNCATED) from None
     except json.JSONDecodeError as error:
         line, column = (error.lineno, error.colno) if not offset else (None, None)
         raise ClipReadError(
