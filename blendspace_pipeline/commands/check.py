@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import argparse
 
-from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
+from blendspace_pipeline.commands._shared import (
+    add_common,
+    emit,
+    exit_code,
+    plugin_policy,
+    report_input_error,
+)
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_INPUT, InputError
 from blendspace_pipeline.pipeline.analysis import analyse
@@ -19,6 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with plugin_policy(args):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     worst = 0
     everything: list[Diagnostic] = []
     spaces: list[BlendSpace] = []
