@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 from blendspace_pipeline.commands._shared import (
     add_common,
@@ -22,6 +24,12 @@ HELP = "analyse manifest(s) and run the rules without writing anything (for CI a
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_common(parser)
+    parser.add_argument(
+        "--changed",
+        action="store_true",
+        help="the arguments are changed files (manifests, layer manifests, clips): check every "
+        "manifest under the current folder that is or uses one of them (the pre-commit hook)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -30,6 +38,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.changed:
+        from blendspace_pipeline.commands._changed import manifests_for, relative_names
+
+        root = Path.cwd()
+        args.manifests = relative_names(manifests_for(args.manifests, root), root)
+        if not args.manifests:
+            if args.format == "text":
+                sys.stdout.write("no manifest uses the changed files: nothing to check\n")
+            else:
+                emit(args.format, [], "checked 0 manifest(s): ")
+            return 0
     worst = 0
     everything: list[Diagnostic] = []
     spaces: list[BlendSpace] = []
