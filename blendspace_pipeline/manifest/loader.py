@@ -12,6 +12,7 @@ import difflib
 import math
 import os
 import re
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,6 +104,7 @@ MAX_AXIS_VALUE = 1e6
 MIN_AXIS_SPAN = 1e-6
 UNIT_RANGE = (1e-6, 1e6)  # metres per file unit
 MAX_CLIP_ENTRIES = 10_000
+MAX_SECONDS = 1e6  # a `range:` end; any real take is far shorter
 
 
 def _check_limits(model: Manifest, tree: CommentedMap, path: Path) -> None:
@@ -132,6 +134,14 @@ def _check_limits(model: Manifest, tree: CommentedMap, path: Path) -> None:
                 (*where, "max"),
                 f"axes.{name}: the range {axis.min:g}..{axis.max:g} is too narrow",
                 "widen the range so clips can differ along it",
+            )
+    for index, entry in enumerate(model.clips):
+        trim = entry.range if isinstance(entry.range, tuple | list) else None
+        if trim is not None and not all(math.isfinite(v) and abs(v) <= MAX_SECONDS for v in trim):
+            fail(
+                ("clips", index, "range"),
+                f"clips[{index}].range: {trim[0]:g}..{trim[1]:g} s is out of range (0..{MAX_SECONDS:g} s)",
+                "give the trim in seconds of the clip, e.g. range: [0.5, 2.5]",
             )
     settings = [(("skeleton",), model.skeleton)]
     for index, entry in enumerate(model.clips):
@@ -174,9 +184,40 @@ def _check_hand_positions(model: Manifest, tree: CommentedMap, path: Path) -> No
                 )
 
 
+MAX_MANIFEST_BYTES = 10 * 1024 * 1024  # a manifest is a few kB; a huge one is an accident or hostile
+
+
+def _read_manifest_bytes(path: Path) -> bytes:
+    """The manifest's bytes: a regular file only (a FIFO would hang, /dev/zero fill the memory)."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    handle = os.open(path, flags)
+    try:
+        info = os.fstat(handle)
+        if stat.S_ISDIR(info.st_mode):
+            raise IsADirectoryError(21, "Is a directory", str(path))
+        if not stat.S_ISREG(info.st_mode):
+            raise ManifestError(
+                "the manifest is not a regular file (a device, FIFO or socket)",
+                path=path,
+                hint="pass the manifest's YAML file",
+            )
+        if info.st_size > MAX_MANIFEST_BYTES:
+            raise ManifestError(
+                f"the manifest is {info.st_size:,} bytes, more than the limit of {MAX_MANIFEST_BYTES:,}",
+                path=path,
+                hint="a manifest lists clips and settings; use globs for long clip lists",
+            )
+        with os.fdopen(handle, "rb") as stream:
+            handle = -1
+            return stream.read(MAX_MANIFEST_BYTES + 1)
+    finally:
+        if handle >= 0:
+            os.close(handle)
+
+
 def _read_text(path: Path) -> str:
     try:
-        data = path.read_bytes()
+        data = _read_manifest_bytes(path)
     except FileNotFoundError:
         raise ManifestError("manifest not found", path=path, hint=_nearby_hint(path)) from None
     except IsADirectoryError:
