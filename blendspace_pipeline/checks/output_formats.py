@@ -172,7 +172,9 @@ def as_sarif(
 
 
 def _escape_github(text: str) -> str:
-    return text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+    # %0A is GitHub's own line break inside an annotation; other control characters (ESC, U+2028)
+    # are shown escaped, as in text output.
+    return printable(text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A"))
 
 
 def _escape_github_property(text: str) -> str:
