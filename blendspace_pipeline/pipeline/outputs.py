@@ -25,13 +25,15 @@ previous generation (`OUT/.blendspace/N/current/<file>`) into the staging folder
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
 import re
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -123,7 +125,8 @@ def write_outputs(
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
     disk full) is bad input, exit 2, and leaves nothing behind."""
     try:
-        return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {})
+        with _usd_errors_as_os_errors():
+            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {})
     except OSError as error:
         where = error.filename or out_dir
         raise InputError(
@@ -131,6 +134,25 @@ def write_outputs(
             path=space.manifest.path,
             hint="point --out (or output.dir in the manifest) at a folder you can write to",
         ) from None
+
+
+@contextmanager
+def _usd_errors_as_os_errors() -> Iterator[None]:
+    """USD reports a failed write (a full disk) as `Tf.ErrorException` with pages of detail: it is
+    the same refusal of the file system as an OSError, so it gets the same one-line exit 2."""
+    try:
+        yield
+    except Exception as error:
+        if not type(error).__module__.startswith("pxr"):
+            raise
+        try:
+            text = str(error)
+        except UnicodeDecodeError:
+            text = ""
+        if "writ" not in text.lower() and "save" not in text.lower():
+            raise  # not a refused write: a bug, exit 3
+        detail = re.search(r"'([^'\n]*(?:writ|space|disk)[^'\n]*)'", text, re.IGNORECASE)
+        raise OSError(errno.EIO, detail.group(1) if detail else "USD could not write a file") from None
 
 
 def _write_outputs(
