@@ -127,7 +127,7 @@ class _Document:
         if not isinstance(version, str) or not version.startswith("2."):
             raise _error(
                 self.path,
-                f"glTF version {version!r} is not supported (asset.version must be 2.x)",
+                f"glTF version {_show(version)} is not supported (asset.version must be 2.x)",
                 "convert the file to glTF 2.0 (e.g. import and re-export in Blender)",
             )
 
@@ -151,7 +151,7 @@ class _Document:
     def integer(self, obj: dict[str, Any], key: str, where: str, default: int | None = None) -> int:
         value = obj.get(key, default)
         if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-            state = "missing" if key not in obj else f"{value!r}, not a non-negative integer"
+            state = "missing" if key not in obj else f"{_show(value)}, not a non-negative integer"
             raise _error(self.path, f"{_join(where, key)} is {state}")
         return value
 
@@ -159,11 +159,11 @@ class _Document:
         value = obj.get(key, default)
         try:
             array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: an integer beyond float range
             array = np.empty(0)
         if array.shape != (len(default),) or not np.isfinite(array).all():
             raise _error(
-                self.path, f"{_join(where, key)} must be {len(default)} finite numbers, not {value!r}"
+                self.path, f"{_join(where, key)} must be {len(default)} finite numbers, not {_show(value)}"
             )
         return array
 
@@ -271,10 +271,12 @@ class _Document:
         accessor = self.item("accessors", index, where)
         component = accessor.get("componentType")
         if component not in _COMPONENTS:
-            raise _error(self.path, f"{pointer}.componentType {component!r} is not a glTF component type")
+            raise _error(
+                self.path, f"{pointer}.componentType {_show(component)} is not a glTF component type"
+            )
         width = _WIDTHS.get(str(accessor.get("type")), 0)
         if width not in widths:
-            raise _error(self.path, f"{pointer} has type {accessor.get('type')!r}, unusable for {where}")
+            raise _error(self.path, f"{pointer} has type {_show(accessor.get('type'))}, unusable for {where}")
         count = self.integer(accessor, "count", pointer)
         dtype = np.dtype(_COMPONENTS[component]).newbyteorder("<")
         if "bufferView" in accessor:
@@ -331,7 +333,7 @@ class _Document:
         index_type = indices.get("componentType")
         if index_type not in (5121, 5123, 5125):
             raise _error(
-                self.path, f"{where}.indices.componentType {index_type!r} is not an unsigned integer"
+                self.path, f"{where}.indices.componentType {_show(index_type)} is not an unsigned integer"
             )
         index_dtype = np.dtype(_COMPONENTS[index_type]).newbyteorder("<")
         rows = self._view(
@@ -389,7 +391,9 @@ class _Document:
                 "'Always Sample Animations', interpolation Linear)",
             )
         if interpolation not in ("LINEAR", "STEP"):
-            raise _error(self.path, f"{where}.interpolation {interpolation!r} is not a glTF interpolation")
+            raise _error(
+                self.path, f"{where}.interpolation {_show(interpolation)} is not a glTF interpolation"
+            )
         times = self.accessor(channel.sampler_json.get("input"), f"{where}.input", (1,))[:, 0]
         width = _CHANNEL_WIDTHS[channel.path]
         values = self.accessor(channel.sampler_json.get("output"), f"{where}.output", (width,))
@@ -425,6 +429,15 @@ class _Channel:
 
 
 _TRUNCATED = "the file is truncated or corrupt; re-export or download it again"
+
+
+def _show(value: object, limit: int = 60) -> str:
+    """A short repr for messages: a fuzzed file may hold a 5,000-digit number or a huge list."""
+    try:
+        text = repr(value)
+    except ValueError:  # int too large to print
+        text = "a huge number"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _join(where: str, key: str) -> str:
