@@ -143,7 +143,7 @@ def _check_limits(model: Manifest, tree: CommentedMap, path: Path) -> None:
                 f"clips[{index}].range: {trim[0]:g}..{trim[1]:g} s is out of range (0..{MAX_SECONDS:g} s)",
                 "give the trim in seconds of the clip, e.g. range: [0.5, 2.5]",
             )
-    settings = [(("skeleton",), model.skeleton)]
+    settings: list[tuple[KeyPath, object]] = [(("skeleton",), model.skeleton)]
     for index, entry in enumerate(model.clips):
         own = getattr(entry, "skeleton", None)
         if own is not None:

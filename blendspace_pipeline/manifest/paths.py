@@ -189,7 +189,7 @@ def _walk_glob(loaded: LoadedManifest, root: Path, pattern: str, key: KeyPath) -
     found: list[Path] = []
     seen: set[Path] = set()
     visited = 0
-    pending = [(root, ())]
+    pending: list[tuple[Path, tuple[str, ...]]] = [(root, ())]
     while pending:
         folder, relative = pending.pop()
         try:
