@@ -5,9 +5,9 @@ crash it, hang it or make it read outside the project:
 
 - files are opened without blocking and must be *regular* files (a FIFO would hang the read, a
   device such as /dev/zero would fill the memory) no larger than `MAX_FILE_BYTES`;
-- a file a clip refers to (a glTF buffer, a USD sublayer or reference) must resolve inside one of
-  the allowed roots: the clip's own folder tree and, when the caller knows it, the manifest's
-  project folder; `..` and absolute references that leave them are refused;
+- a file a clip refers to (a glTF buffer, a USD sublayer or reference) must resolve inside the
+  clip's own folder tree (symlinks resolved); `..` and absolute references that leave it are
+  refused (`allowed_roots` takes an extra root for callers that know the project folder);
 - a clip may not exceed `max_frames()` frames, `MAX_JOINTS` joints or a sane frame rate, and its
   values must be of a size a body can have (a 1e308 offset overflows forward kinematics).
 
@@ -108,7 +108,7 @@ def check_regular(path: Path, *, what: str = "file") -> None:
 
 
 # The roots the clip being read may refer into; `read_clips` sets them around `adapter.read`. An
-# adapter called directly (tests, tools) gets the clip's own folder only.
+# adapter called directly (tests, tools) gets the clip's own folder too.
 REFERENCE_ROOTS: ContextVar[list[Path] | None] = ContextVar("REFERENCE_ROOTS", default=None)
 
 
