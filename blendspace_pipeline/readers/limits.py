@@ -35,7 +35,6 @@ MAX_FRAMES_VARIABLE = "BLENDSPACE_MAX_FRAMES"
 MIN_FPS, MAX_FPS = 1.0, 10_000.0
 # Translations in the file's own unit (cm for most BVH): 1e7 cm is 100 km, no body part is there.
 MAX_TRANSLATION = 1e7
-MAX_JSON_DEPTH = 64  # glTF nests about 5 levels; deeper JSON is hostile or broken
 
 
 def max_frames() -> int:
