@@ -289,6 +289,14 @@ BVH_EDITS: dict[str, tuple[Callable[[str], str | bytes], str]] = {
     "latin1_joint_name": (lambda t: t.encode().replace(b"LeftUpLeg", b"Left\xe9UpLeg", 1) + b"\xff", "b.bvh"),
     "joints_3000": (lambda t: _deep_hierarchy(3000), "b.bvh"),
     "utf16": (lambda t: t.encode("utf-16"), "b.bvh"),
+    # Found by the fuzzer: a brace after an End Site keyword opened a block owned by no joint.
+    "stray_brace_after_end_site": (
+        lambda t: (
+            "HIERARCHY\nROOT Hips\n{\nEnd Site\n}\n{\nOFFSET 0 1 0\n}\nMOTION\nFrames: 1\n"
+            "Frame Time: 0.03\n0\n"
+        ),
+        "b.bvh:7",
+    ),
 }
 
 
@@ -366,6 +374,7 @@ GLTF_EDITS: dict[str, tuple[Callable[[dict[str, object], Path], object], str]] =
     "accessor_count_huge": (_set("accessors.0.count", 10**12), "g.gltf"),
     "accessor_index_missing": (_set("animations.0.samplers.0.input", 9999), "g.gltf"),
     "version_1": (_set("asset.version", "1.0"), "g.gltf"),
+    "component_type_list": (_set("accessors.0.componentType", [5126]), "g.gltf"),  # found by the fuzzer
     "nested_200000": (lambda d, r: b"[" * 200_000 + b"]" * 200_000, "g.gltf"),
     "nested_objects_200000": (lambda d, r: b'{"a":' * 200_000 + b"1" + b"}" * 200_000, "g.gltf"),
     "not_json": (lambda d, r: b"{not json", "g.gltf:1"),

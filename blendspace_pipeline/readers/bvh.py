@@ -170,7 +170,9 @@ def parse_header(lines: list[str], path: Path) -> BvhHeader:
             if not stack:
                 raise ClipReadError("OFFSET outside a joint", path=path, line=number, hint=_REEXPORT)
             if stack[-1] == -2:
-                owner = next(i for i in reversed(stack) if i >= 0)
+                owner = next((i for i in reversed(stack) if i >= 0), None)
+                if owner is None:  # a stray `{` opened a block that belongs to no joint
+                    raise ClipReadError("OFFSET outside a joint", path=path, line=number, hint=_REEXPORT)
                 header.joints[owner].end_site = offset
             else:
                 header.joints[stack[-1]].offset = offset

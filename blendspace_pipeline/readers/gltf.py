@@ -270,7 +270,7 @@ class _Document:
         pointer = f"accessors[{index}]"
         accessor = self.item("accessors", index, where)
         component = accessor.get("componentType")
-        if component not in _COMPONENTS:
+        if not isinstance(component, int) or component not in _COMPONENTS:  # a list is unhashable
             raise _error(
                 self.path, f"{pointer}.componentType {_show(component)} is not a glTF component type"
             )
