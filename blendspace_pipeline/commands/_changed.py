@@ -76,6 +76,8 @@ def inputs_of(manifest: Path, depth: int = 0) -> tuple[set[Path], set[Path]]:
                 files |= inputs_of(beta, depth + 1)[0]
     except InputError:
         pass  # `check` reports it; a broken manifest still counts as reading itself
+    # A .gltf's buffer is usually `<stem>.bin` beside it (Blender's "glTF Separate" export).
+    files |= {f.with_suffix(".bin") for f in files if f.suffix.lower() == ".gltf"}
     return files, layers
 
 
