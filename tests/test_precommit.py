@@ -252,3 +252,27 @@ def test_entry_command_on_a_bad_manifest(tmp_path: Path) -> None:
     done = run_like_pre_commit(asset_repo(tmp_path / "assets", BAD))
     assert done.returncode == 1, done.stdout + done.stderr
     assert "locomotion.manifest.yaml:5:5: error crossing-axis: edge walk_left - walk_right" in done.stdout
+
+
+def test_changed_files_map_to_the_manifests_that_read_them(tmp_path: Path) -> None:
+    from blendspace_pipeline.commands._changed import manifests_for
+    from blendspace_pipeline.writers.gltf import write_gltf_clip
+
+    assets = asset_repo(tmp_path / "assets", GOOD)
+    clips = assets / "clips"
+    write_gltf_clip(generate(SPECS["idle"]), clips / "extra.gltf")
+    (clips / "extra.bin").write_bytes(b"\0" * 8)  # a separate buffer's name, as Blender writes it
+    other = assets / "other" / "second.yaml"
+    other.parent.mkdir()
+    other.write_text(
+        "schema_version: 1\nname: second\nclips:\n  - path: ../clips/extra.gltf\n", encoding="utf-8"
+    )
+    main_manifest = assets / "locomotion.manifest.yaml"
+
+    def chosen(*names: str) -> list[str]:
+        return sorted(p.name for p in manifests_for([assets / n for n in names], assets))
+
+    assert chosen("clips/extra.bin") == ["second.yaml"]
+    assert chosen("clips/walk_left.usda") == [main_manifest.name]
+    assert chosen("clips/walk_left.usda", "clips/extra.gltf") == [main_manifest.name, "second.yaml"]
+    assert chosen("ci.yaml", "README.md") == []
