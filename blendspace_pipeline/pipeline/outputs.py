@@ -1,11 +1,11 @@
 """`build`: analyse, then publish every output as one set.
 
-Generation folders (readers see the old set or the new set, never a mix):
+Generation folders (readers of the documents see the old set or the new set, never a mix):
 
     OUT/N.blendspace.json          -> .blendspace/N/current/N.blendspace.json   (stable symlinks)
-    OUT/clips/walk_mirror.usda     -> ../.blendspace/N/current/clips/walk_mirror.usda
     OUT/.blendspace/N/current      -> g-<content hash>                            (the one pointer)
-    OUT/.blendspace/N/g-<hash>/    the files of one build
+    OUT/.blendspace/N/g-<hash>/    the files of one build (documents and generated clips)
+    OUT/clips/walk_mirror.usda     a real file (hard link into the generation, else a copy)
 
 1. Every output is written into `OUT/.blendspace-staging-<pid>-<random>/` (same file system).
 2. Each file is synced and checked against its format (`report.atomic.verify_written`): a full
@@ -13,11 +13,15 @@ Generation folders (readers see the old set or the new set, never a mix):
 3. The staging folder is renamed to `g-<hash of its contents>` (identical builds reuse it, so a
    rebuild is byte- and path-identical), then `current` is switched by one `os.replace` of a new
    symlink: that rename is the moment the whole set changes.
-4. The user-visible links are (re)made, links of files the new set no longer has are removed,
-   and older generations are deleted.
+   Generated clips are placed as real files just before that rename (engines import them as
+   assets; Unity does not support symlinked assets, exporters resolve paths): each one is
+   replaced in one rename, but the clips are not switched together with the documents.
+4. The user-visible links of the documents (JSON, USD, HTML, PNG) are (re)made, links of files
+   the new set no longer has are removed, and older generations are deleted.
 
-A failure before step 3's rename leaves the previous set untouched (and removes a folder the build
-created). Staging folders of killed builds (their pid no longer runs) are removed by the next
+A failure before the switch leaves the previous documents untouched (and removes a folder the
+build created); only a failure between placing the clips and the switch leaves new clips beside
+the previous documents. Staging folders of killed builds (their pid no longer runs) are removed by the next
 build. Where symlinks cannot be made (Windows without developer mode) the files are moved into
 place one by one as before. A writer that wants to skip an unchanged output can copy it from the
 previous generation (`OUT/.blendspace/N/current/<file>`) into the staging folder.
@@ -268,6 +272,14 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> N
     generation = f"g-{_content_hash(staging, files)}"
     if not (home / generation).is_dir():
         os.replace(staging, home / generation)
+    documents = [relative for relative in files if relative.parent == Path(".")]
+    # Generated clips are real files (hard links into the generation, else copies): engines import
+    # them as assets (Unity does not support symlinked assets) and exporters resolve their paths,
+    # which must not lead into a generation folder that the next build deletes. They are placed
+    # before the switch, so the new documents never name a clip that is not there yet.
+    for relative in files:
+        if relative not in documents:
+            _place(home / generation / relative, out_dir / relative)
     pointer = home / CURRENT
     previous = os.readlink(pointer) if pointer.is_symlink() else None
     if previous != generation:
@@ -276,12 +288,29 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> N
         os.symlink(generation, switch)
         os.replace(switch, pointer)  # the one rename that swaps the whole set
     wanted = {out_dir / relative for relative in files}
-    for relative in files:
+    for relative in documents:
         _link(out_dir / relative, home / CURRENT / relative)
     _drop_dangling_links(out_dir, home, wanted)
     for old in home.glob("g-*"):
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _place(source: Path, target: Path) -> None:
+    """``target`` becomes a real file with ``source``'s content, in one rename."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if target.is_file() and not target.is_symlink() and os.path.samefile(source, target):
+        return  # already this generation's file (an identical rebuild)
+    temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    temporary.unlink(missing_ok=True)
+    try:
+        os.link(source, temporary)
+    except OSError:  # no hard links on this file system
+        shutil.copy2(source, temporary)
+    if target.is_dir() and not target.is_symlink():
+        shutil.rmtree(target)
+    os.replace(temporary, target)
+    temporary.unlink(missing_ok=True)  # rename between two links of one file does nothing (POSIX)
 
 
 def _link(link: Path, target: Path) -> None:
