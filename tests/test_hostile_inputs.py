@@ -155,6 +155,8 @@ MANIFEST_BODIES: dict[str, tuple[str, str]] = {
     "yaml_a_list": ("- 1\n- 2\n", ":1:"),
     "yaml_a_string": ("just text\n", ":1:"),
     "yaml_empty": ("", "manifest.yaml"),
+    # Found by the fuzzer: a lone surrogate escape was a UnicodeEncodeError (exit 3) in the build.
+    "yaml_lone_surrogate": (HEADER + 'clips:\n  - path: "clips/\\ud800.usda"\n', ":4:"),
     "yaml_python_tag": (GOOD + "x: !!python/object:os.system ls\n", "manifest.yaml"),
 }
 

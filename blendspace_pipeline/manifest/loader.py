@@ -86,6 +86,7 @@ def load_manifest(path: Path) -> LoadedManifest:
     text = _read_text(path)
     tree = _parse(text, path)
     raw = _to_plain(tree, path)
+    _check_surrogates(raw, tree, path)
     _check_schema_version(raw, tree, path)
     try:
         model = Manifest.model_validate(raw)
@@ -95,6 +96,29 @@ def load_manifest(path: Path) -> LoadedManifest:
     _check_limits(model, tree, path)
     _check_hand_positions(model, tree, path)
     return LoadedManifest(path=path, model=model, directory=Path(os.path.abspath(path)).parent, tree=tree)
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _check_surrogates(raw: Any, tree: CommentedMap, path: Path, key_path: KeyPath = ()) -> None:
+    """A YAML escape such as "\\ud800" makes a lone UTF-16 surrogate: no file name or output can
+    hold one (found by the fuzzer as a UnicodeEncodeError deep in the build)."""
+    items = raw.items() if isinstance(raw, dict) else enumerate(raw) if isinstance(raw, list) else ()
+    for key, value in items:
+        where: KeyPath = (*key_path, key)
+        if (isinstance(key, str) and _SURROGATE.search(key)) or (
+            isinstance(value, str) and _SURROGATE.search(value)
+        ):
+            line, column = locate_in(tree, where)
+            raise ManifestError(
+                f"{dotted(where)} holds an unpaired UTF-16 surrogate escape (\\ud800-\\udfff)",
+                path=path,
+                line=line,
+                column=column,
+                hint="write the character itself, or a \\U escape of a real code point",
+            )
+        _check_surrogates(value, tree, path, where)
 
 
 # Hard limits on numbers the schema accepts but no blend space can use: a grid of 10**1000 cells
