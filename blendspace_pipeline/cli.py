@@ -4,22 +4,39 @@ Each sub-command lives in `blendspace_pipeline.commands.<name>` and exposes ``HE
 ``add_arguments(parser)`` and ``run(args) -> int``. `main(argv)` is testable without a
 subprocess; it never lets a traceback reach the user: input errors exit 2 with
 `path:line: message`, anything unexpected exits 3 with one line and the path of a log file.
+
+Only the command being run is imported (numpy, pxr and the rest load with it): `--version` and
+`--help` answer from the help lines in `COMMAND_HELP`, well under 0.3 s.
+The crash log is private to the user: `<user cache>/blendspace-pipeline/crash.log` in a 0700
+folder, opened without following symlinks; when it cannot be written the one line says so.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
-import tempfile
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError
+from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError, printable
 
 COMMANDS = ("build", "check", "rules", "schema", "eval", "export", "index", "suggest")
+# Each command module's HELP, repeated here so the top-level help needs no import
+# (tests/test_hostile_inputs.py checks they agree).
+COMMAND_HELP: dict[str, str] = {
+    "build": "build blend-space assets (JSON, USD, HTML report, PNG) from manifest(s)",
+    "check": "analyse manifest(s) and run the rules without writing anything (for CI and pre-commit)",
+    "rules": "list every available rule (built-in, entry points, BLENDSPACE_RULE_PATH)",
+    "schema": "print the JSON Schema of the manifest (default) or of the blend-space JSON",
+    "eval": "blend weights (and playback rates) the blend graph gives at one query point",
+    "export": "write the blend space for Godot (.tres), Unity (.controller) or Unreal (editor Python script)",
+    "index": "measure a whole mocap library into a shared store of features (on Dask)",
+    "suggest": "propose library clips (from `blendspace index`) that fill a manifest's placeholders",
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -31,22 +48,29 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_INPUT)
 
 
-def _available_commands() -> dict[str, object]:
-    modules: dict[str, object] = {}
-    for name in COMMANDS:
-        try:
-            modules[name] = importlib.import_module(f"blendspace_pipeline.commands.{name}")
-        except ModuleNotFoundError as error:
-            if error.name != f"blendspace_pipeline.commands.{name}":
-                raise
-    return modules
+def _command_module(name: str) -> object | None:
+    try:
+        return importlib.import_module(f"blendspace_pipeline.commands.{name}")
+    except ModuleNotFoundError as error:
+        if error.name != f"blendspace_pipeline.commands.{name}":
+            raise
+        return None
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None, *, lazy: bool = False) -> argparse.ArgumentParser:
+    """The full parser; with ``lazy``, only the command ``only`` is imported and given its arguments
+    (the others are listed with their help line, which is all `--help` shows)."""
     parser = _Parser(prog="blendspace", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--version", action="version", version=f"blendspace-pipeline {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name, module in _available_commands().items():
+    for name in COMMANDS:
+        if lazy and name != only:
+            help_line = COMMAND_HELP.get(name)
+            sub.add_parser(name, help=help_line, description=help_line)
+            continue
+        module = _command_module(name)
+        if module is None:
+            continue
         command = sub.add_parser(
             name, help=getattr(module, "HELP", None), description=getattr(module, "HELP", None)
         )
@@ -55,16 +79,45 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _log_internal_error() -> Path:
-    log = Path(tempfile.gettempdir()) / "blendspace-crash.log"
-    log.write_text(f"blendspace-pipeline {__version__}\n{traceback.format_exc()}", encoding="utf-8")
-    return log
+def _chosen_command(argv: Sequence[str]) -> str | None:
+    # The top level takes no option with a value, so the first word that is not an option is it.
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
+def crash_log_path() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.environ.get("LOCALAPPDATA") or str(Path.home() / ".cache")
+    return Path(base) / "blendspace-pipeline" / "crash.log"
+
+
+def _log_internal_error() -> tuple[Path | None, str]:
+    """Write the traceback to the private crash log; (path, "") or (None, why it was not written)."""
+    log = crash_log_path()
+    try:
+        log.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        folder = os.lstat(log.parent)
+        if not os.path.isdir(log.parent) or os.path.islink(log.parent):
+            return None, f"{log.parent} is not a plain folder"
+        if hasattr(os, "getuid") and folder.st_uid != os.getuid():
+            return None, f"{log.parent} belongs to another user"
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0)
+        handle = os.open(log, flags, 0o600)
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(f"blendspace-pipeline {__version__}\n{traceback.format_exc()}")
+        return log, ""
+    except OSError as error:  # a planted symlink (ELOOP), a read-only home, a full disk
+        return None, f"cannot write {log}: {error.strerror or error}"
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error).strip().split("\n", 1)[0]  # Qhull's messages run to 30 lines
+    return printable(f"{type(error).__name__}: {text}"[:300])
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    words = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = parser.parse_args(argv)
+        parser = build_parser(_chosen_command(words), lazy=True)
+        args = parser.parse_args(words)
         result: int = args.handler(args)
         return result
     except SystemExit as stop:
@@ -76,6 +129,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.write("blendspace: interrupted\n")
         return 130
     except Exception as error:  # the one place that turns a bug into exit 3
-        log = _log_internal_error()
-        sys.stderr.write(f"blendspace: internal error: {type(error).__name__}: {error} (details in {log})\n")
+        try:
+            log, problem = _log_internal_error()
+            where = f"details in {log}" if log is not None else f"no crash log: {problem}"
+        except Exception as logging_error:  # never a traceback, even from the logger
+            where = f"no crash log: {type(logging_error).__name__}"
+        sys.stderr.write(f"blendspace: internal error: {_one_line(error)} ({printable(where)})\n")
         return EXIT_INTERNAL

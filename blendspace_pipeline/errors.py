@@ -8,6 +8,7 @@ Anything else that escapes is an internal error (exit 3).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +16,21 @@ EXIT_OK = 0
 EXIT_DIAGNOSTICS = 1
 EXIT_INPUT = 2
 EXIT_INTERNAL = 3
+
+
+# C0 and C1 control characters and the Unicode line and paragraph separators: printed raw, a clip
+# name holding one could start a new line that a CI log obeys (`::error ...`) or move the cursor.
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def printable(text: str) -> str:
+    """``text`` with every control character shown as an escape (`\\n`, `\\x1b`): one line, inert."""
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], text)
+
+
+def printable_hint(text: str, indent: str) -> str:
+    """A hint may span lines on purpose: each line is made printable and indented by ``indent``."""
+    return ("\n" + indent).join(printable(line) for line in text.split("\n"))
 
 
 @dataclass
@@ -42,10 +58,11 @@ class InputError(Exception):
 
     def render(self) -> str:
         """`path:line:col: message` and, when there is one, an indented hint."""
-        where = self.location()
-        text = f"{where}: {self.message}" if where else self.message
+        where = printable(self.location())
+        message = printable(self.message)
+        text = f"{where}: {message}" if where else message
         if self.hint:
-            text += "\n    hint: " + self.hint.replace("\n", "\n          ")
+            text += "\n    hint: " + printable_hint(self.hint, "          ")
         return text
 
 

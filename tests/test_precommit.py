@@ -167,17 +167,23 @@ def hook_definition() -> dict[str, Any]:
 
 def test_hook_definition() -> None:
     hook = hook_definition()
-    assert hook["language"] == "python" and hook["entry"] == "blendspace check"
+    assert hook["language"] == "python" and hook["entry"] == "blendspace check --changed"
     assert hook.get("pass_filenames", True) and hook["require_serial"]
+    assert "--no-plugins" in hook["description"]  # the trust model is stated where users look
     files = re.compile(hook["files"])
+    # Manifests, layer manifests (any YAML: `check --changed` skips YAML that is not a manifest)
+    # and clip files: a commit that changes only a clip must still check the space.
     for name in (
         "locomotion.manifest.yaml",
         "anim/walk.blendspace.yml",
-        "manifest.yaml",
-        "a/b/manifest_v2.yaml",
+        "lateral.yaml",
+        "clips/walk.usda",
+        "clips/run.BVH",
+        "clips/turn.glb",
+        "clips/turn.bin",
     ):
         assert files.search(name), name
-    for name in ("clips/walk.usda", "ci.yaml", ".github/workflows/build.yml", "manifest.yaml.bak"):
+    for name in ("README.md", "manifest.yaml.bak", "clips/notes.txt", "textures/a.png"):
         assert not files.search(name), name
 
 
@@ -190,12 +196,47 @@ def entry_command() -> list[str]:
     return [script, *args] if script else [sys.executable, "-m", "blendspace_pipeline", *args]
 
 
+def run_entry(assets: Path, *names: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [*entry_command(), *names], cwd=assets, capture_output=True, text=True, timeout=120, check=False
+    )
+
+
+def test_a_changed_clip_checks_the_manifest_that_uses_it(tmp_path: Path) -> None:
+    assets = asset_repo(tmp_path / "assets", BAD)
+    done = run_entry(assets, "clips/walk_left.usda")
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert "locomotion.manifest.yaml:5:5: error crossing-axis" in done.stdout
+    # A file no manifest reads checks nothing and passes.
+    (assets / "other.usda").write_text("#usda 1.0\n", encoding="utf-8")
+    done = run_entry(assets, "other.usda", "ci.yaml")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "nothing to check" in done.stdout
+
+
+def test_a_changed_layer_manifest_checks_its_parent(tmp_path: Path) -> None:
+    assets = asset_repo(tmp_path / "assets", GOOD)
+    main = assets / "locomotion.manifest.yaml"
+    main.write_text(
+        main.read_text(encoding="utf-8") + "layers:\n  - {name: side, kind: beta, manifest: lateral.yaml}\n",
+        encoding="utf-8",
+    )
+    # The layer manifest names a clip that does not exist: only checking through the parent (or
+    # the layer itself) can find that, and the parent must be the one reported.
+    (assets / "lateral.yaml").write_text(
+        "schema_version: 1\nname: lateral\nclips:\n  - path: clips/missing.usda\n", encoding="utf-8"
+    )
+    done = run_entry(assets, "lateral.yaml")
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "lateral.yaml:4:" in done.stderr and "missing.usda" in done.stderr
+
+
 def run_like_pre_commit(assets: Path) -> subprocess.CompletedProcess[str]:
     """The entry with the tracked files that `files:` selects appended, as pre-commit passes them."""
     files = re.compile(hook_definition()["files"])
     tracked = git("ls-files", cwd=assets).split()
     chosen = [name for name in tracked if files.search(name)]
-    assert chosen == ["locomotion.manifest.yaml"]
+    assert "locomotion.manifest.yaml" in chosen and "ci.yaml" in chosen
     return subprocess.run(
         [*entry_command(), *chosen], cwd=assets, capture_output=True, text=True, timeout=120, check=False
     )
@@ -211,3 +252,27 @@ def test_entry_command_on_a_bad_manifest(tmp_path: Path) -> None:
     done = run_like_pre_commit(asset_repo(tmp_path / "assets", BAD))
     assert done.returncode == 1, done.stdout + done.stderr
     assert "locomotion.manifest.yaml:5:5: error crossing-axis: edge walk_left - walk_right" in done.stdout
+
+
+def test_changed_files_map_to_the_manifests_that_read_them(tmp_path: Path) -> None:
+    from blendspace_pipeline.commands._changed import manifests_for
+    from blendspace_pipeline.writers.gltf import write_gltf_clip
+
+    assets = asset_repo(tmp_path / "assets", GOOD)
+    clips = assets / "clips"
+    write_gltf_clip(generate(SPECS["idle"]), clips / "extra.gltf")
+    (clips / "extra.bin").write_bytes(b"\0" * 8)  # a separate buffer's name, as Blender writes it
+    other = assets / "other" / "second.yaml"
+    other.parent.mkdir()
+    other.write_text(
+        "schema_version: 1\nname: second\nclips:\n  - path: ../clips/extra.gltf\n", encoding="utf-8"
+    )
+    main_manifest = assets / "locomotion.manifest.yaml"
+
+    def chosen(*names: str) -> list[str]:
+        return sorted(p.name for p in manifests_for([assets / n for n in names], assets))
+
+    assert chosen("clips/extra.bin") == ["second.yaml"]
+    assert chosen("clips/walk_left.usda") == [main_manifest.name]
+    assert chosen("clips/walk_left.usda", "clips/extra.gltf") == [main_manifest.name, "second.yaml"]
+    assert chosen("ci.yaml", "README.md") == []

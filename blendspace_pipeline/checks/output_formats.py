@@ -13,6 +13,7 @@ from urllib.parse import quote
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.diagnostics import Diagnostic, Severity
+from blendspace_pipeline.errors import printable, printable_hint
 
 FORMATS = ("text", "json", "sarif", "github")
 _SARIF_LEVEL = {"error": "error", "warning": "warning", "info": "note"}
@@ -38,14 +39,18 @@ def _where(d: Diagnostic) -> str:
 
 
 def as_text(diagnostics: Sequence[Diagnostic], summary: str = "") -> str:
+    """One line per finding (and an indented hint): control characters in a clip name, a path or a
+    plugin's message are escaped, so no finding can forge a line of its own (`::error ...`)."""
     lines = []
     for d in diagnostics:
-        lines.append(f"{_where(d)}: {d.severity} {d.rule}: {d.message}")
+        lines.append(printable(f"{_where(d)}: {d.severity} {d.rule}: {d.message}"))
         if d.hint:
-            lines.append(f"    hint: {d.hint}")
+            lines.append(f"    hint: {printable_hint(d.hint, '          ')}")
     counts = {s: sum(1 for d in diagnostics if d.severity == s) for s in ("error", "warning", "info")}
     tally = ", ".join(f"{n} {s}{'s' if n != 1 else ''}" for s, n in counts.items())
-    lines.append(f"{summary}{tally}" if summary else tally)
+    # A build's summary ends with a newline on purpose (a line of its own before the tally).
+    head = printable(summary.removesuffix("\n")) + ("\n" if summary.endswith("\n") else "")
+    lines.append(f"{head}{tally}" if summary else tally)
     return "\n".join(lines) + "\n"
 
 
@@ -167,7 +172,9 @@ def as_sarif(
 
 
 def _escape_github(text: str) -> str:
-    return text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+    # %0A is GitHub's own line break inside an annotation; other control characters (ESC, U+2028)
+    # are shown escaped, as in text output.
+    return printable(text.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A"))
 
 
 def _escape_github_property(text: str) -> str:

@@ -6,6 +6,14 @@ Rules come from four places, all through `load_rules`, in this order: the built-
 `plugins:` (module names or paths). A plugin that fails to import or repeats a slug becomes a
 visible `plugin-error` diagnostic naming its source: never a silent skip.
 
+Trust model (a pre-commit hook or a build farm runs on changes nobody has reviewed yet): built-in
+rules and installed entry points are trusted, they are installed software. `plugins:` and
+`BLENDSPACE_RULE_PATH` run code named by the manifest or the environment, so a plugin given by
+path loads only from inside the manifest's project (its folder tree, symlinks resolved): a
+manifest cannot run `/abs/evil.py` or `../outside/evil.py`. For an untrusted run, `--no-plugins`
+on build and check, or `BLENDSPACE_NO_PLUGINS=1`, loads neither `plugins:` nor
+`BLENDSPACE_RULE_PATH`; `rules:` naming a rule that is then missing is a warning, not an error.
+
 Each run makes fresh rule instances with their validated options, and hands them read-only views;
 whatever a rule yields is checked (`finding_problem`) before it can reach the outputs or a fix.
 """
@@ -38,11 +46,14 @@ from blendspace_pipeline.api import (
     SpaceView,
     iter_rule_classes,
 )
+from blendspace_pipeline.checks.trust import plugins_disabled
 from blendspace_pipeline.diagnostics import SEVERITY_ORDER, Diagnostic, Placeholder, Severity
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace, Layer, MeasuredClip
 
 ENTRY_POINT_GROUP = "blendspace_pipeline.rules"
 RULE_PATH_VARIABLE = "BLENDSPACE_RULE_PATH"
+
+
 ENGINE_CODES = {
     "plugin-error": "BS900",
     "unused-suppression": "BS901",
@@ -61,6 +72,7 @@ class LoadedRules:
     rules: dict[str, type[Rule]] = field(default_factory=dict)  # slug -> class
     origins: dict[str, str] = field(default_factory=dict)  # slug -> where it came from
     problems: list[Diagnostic] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)  # plugins not loaded because plugins are off
 
     def add_module(self, module: ModuleType, origin: str) -> None:
         for rule in iter_rule_classes(vars(module)):
@@ -228,6 +240,12 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
             loaded.problems.append(
                 _engine_diagnostic("plugin-error", f"{origin} is neither a module nor a Rule")
             )
+    if plugins_disabled():
+        loaded.skipped += [
+            f"{RULE_PATH_VARIABLE} {f}" for f in os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep) if f
+        ]
+        loaded.skipped += [f"plugin {p}" for p in plugins]
+        return loaded
     for folder in filter(None, os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep)):
         directory = Path(folder)
         if not directory.is_dir():
@@ -251,10 +269,27 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
                     )
                 )
                 continue
+            if base_dir is not None and not _inside(candidate, base_dir):
+                loaded.problems.append(
+                    _engine_diagnostic(
+                        "plugin-error",
+                        f"plugin file {plugin} lies outside the manifest's project ({candidate.resolve()}); "
+                        "it was not loaded",
+                        hint="keep studio rule files inside the project folder, or install them as a "
+                        "package with a `blendspace_pipeline.rules` entry point",
+                    )
+                )
+                continue
             _load_path(candidate, loaded, f"plugin {plugin}")
         else:
             _load_module_name(plugin, loaded, f"plugin {plugin}")
     return loaded
+
+
+def _inside(path: Path, root: Path) -> bool:
+    """Whether ``path`` (symlinks resolved) lies in ``root``'s folder tree."""
+    target, base = path.resolve(), root.resolve()
+    return target == base or target.is_relative_to(base)
 
 
 def sample_view(
@@ -479,12 +514,13 @@ def _check_rule_names(space: BlendSpace, loaded: LoadedRules) -> list[Diagnostic
         close = difflib.get_close_matches(name, known, n=1)
         hint = (f"did you mean {close[0]!r}? " if close else "") + "`blendspace rules` lists every rule"
         message = f"{'.'.join(str(k) for k in key_path)}: no rule is called {name!r}"
-        if not loaded.problems:
+        if not loaded.problems and not loaded.skipped:
             raise space.manifest.error_at(key_path, message, hint)
         line, column = space.manifest.locate(key_path)
+        why = " (a plugin failed to load)" if loaded.problems else " (plugins are off: --no-plugins)"
         warnings.append(
             replace(
-                _engine_diagnostic("unknown-rule", message, hint=hint + " (a plugin failed to load)"),
+                _engine_diagnostic("unknown-rule", message, hint=hint + why),
                 path=str(space.manifest.path),
                 line=line,
                 column=column,

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import os
 import sys
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
+from blendspace_pipeline.checks.trust import NO_PLUGINS_VARIABLE
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
 
@@ -91,8 +94,33 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--strict", action="store_true", help="exit 1 on warnings too")
     parser.add_argument(
+        "--no-plugins",
+        action="store_true",
+        help="an untrusted run: load only built-in and installed entry-point rules, not `plugins:` "
+        f"or BLENDSPACE_RULE_PATH (same as {NO_PLUGINS_VARIABLE}=1)",
+    )
+    parser.add_argument(
         "--jobs", type=_positive, default=1, metavar="N", help="measure clips in N processes (default 1)"
     )
+
+
+@contextmanager
+def plugin_policy(args: argparse.Namespace) -> Iterator[None]:
+    """`--no-plugins` for the length of one command: the rule engine (and --jobs workers, which
+    inherit the environment) read it from `BLENDSPACE_NO_PLUGINS`; restored afterwards so a
+    caller of `cli.main` in the same process is not affected."""
+    if not getattr(args, "no_plugins", False):
+        yield
+        return
+    before = os.environ.get(NO_PLUGINS_VARIABLE)
+    os.environ[NO_PLUGINS_VARIABLE] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(NO_PLUGINS_VARIABLE, None)
+        else:
+            os.environ[NO_PLUGINS_VARIABLE] = before
 
 
 def _positive(text: str) -> int:

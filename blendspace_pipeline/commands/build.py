@@ -6,7 +6,13 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
+from blendspace_pipeline.commands._shared import (
+    add_common,
+    emit,
+    exit_code,
+    plugin_policy,
+    report_input_error,
+)
 from blendspace_pipeline.errors import EXIT_INPUT, InputError, UsageError
 from blendspace_pipeline.pipeline import stamp
 
@@ -24,6 +30,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with plugin_policy(args):
+        return _stamped(args)
+
+
+def _stamped(args: argparse.Namespace) -> int:
     if args.out is not None and len(args.manifests) > 1:
         raise UsageError(
             "--out takes one manifest; several manifests write to their own output.dir",

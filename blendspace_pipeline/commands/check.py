@@ -3,10 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from blendspace_pipeline.commands._shared import add_common, emit, exit_code, report_input_error
+from blendspace_pipeline.commands._shared import (
+    add_common,
+    emit,
+    exit_code,
+    plugin_policy,
+    report_input_error,
+)
 from blendspace_pipeline.errors import EXIT_INPUT, InputError
 from blendspace_pipeline.pipeline import stamp
 
@@ -19,19 +26,37 @@ HELP = "analyse manifest(s) and run the rules without writing anything (for CI a
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_common(parser)
+    parser.add_argument(
+        "--changed",
+        action="store_true",
+        help="the arguments are changed files (manifests, layer manifests, clips): check every "
+        "manifest under the current folder that is or uses one of them (the pre-commit hook)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    # Nothing moved since the same check: print what it printed, without loading the pipeline.
-    key = stamp.invocation_key("check", args.manifests, {"format": args.format, "strict": args.strict})
-    if args.format != "sarif" and (replayed := stamp.replay(key)) is not None:
-        return replayed
-    inputs: list[Path] = []
-    with stamp.Capture() as printed:
-        worst = _run(args, inputs)
-    if worst != EXIT_INPUT and args.format != "sarif":
-        stamp.record(key, inputs, [], printed.text, worst)
-    return worst
+    with plugin_policy(args):
+        if args.changed:
+            from blendspace_pipeline.commands._changed import manifests_for, relative_names
+
+            root = Path.cwd()
+            args.manifests = relative_names(manifests_for(args.manifests, root), root)
+            if not args.manifests:
+                if args.format == "text":
+                    sys.stdout.write("no manifest uses the changed files: nothing to check\n")
+                else:
+                    emit(args.format, [], "checked 0 manifest(s): ")
+                return 0
+        # Nothing moved since the same check: print what it printed, without loading the pipeline.
+        key = stamp.invocation_key("check", args.manifests, {"format": args.format, "strict": args.strict})
+        if args.format != "sarif" and (replayed := stamp.replay(key)) is not None:
+            return replayed
+        inputs: list[Path] = []
+        with stamp.Capture() as printed:
+            worst = _run(args, inputs)
+        if worst != EXIT_INPUT and args.format != "sarif":
+            stamp.record(key, inputs, [], printed.text, worst)
+        return worst
 
 
 def _run(args: argparse.Namespace, inputs: list[Path]) -> int:

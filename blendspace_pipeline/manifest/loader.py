@@ -9,8 +9,10 @@ position and a hint; validation problems are all reported at once (`ManifestProb
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import re
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -84,14 +86,107 @@ def load_manifest(path: Path) -> LoadedManifest:
     text = _read_text(path)
     tree = _parse(text, path)
     raw = _to_plain(tree, path)
+    _check_surrogates(raw, tree, path)
     _check_schema_version(raw, tree, path)
     try:
         model = Manifest.model_validate(raw)
     except ValidationError as error:
         problems = translate(error, raw, lambda key_path: locate_in(tree, key_path))
         raise ManifestProblemsError.from_problems(path, problems) from None
+    _check_limits(model, tree, path)
     _check_hand_positions(model, tree, path)
     return LoadedManifest(path=path, model=model, directory=Path(os.path.abspath(path)).parent, tree=tree)
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _check_surrogates(raw: Any, tree: CommentedMap, path: Path, key_path: KeyPath = ()) -> None:
+    """A YAML escape such as "\\ud800" makes a lone UTF-16 surrogate: no file name or output can
+    hold one (found by the fuzzer as a UnicodeEncodeError deep in the build)."""
+    items = raw.items() if isinstance(raw, dict) else enumerate(raw) if isinstance(raw, list) else ()
+    for key, value in items:
+        where: KeyPath = (*key_path, key)
+        if (isinstance(key, str) and _SURROGATE.search(key)) or (
+            isinstance(value, str) and _SURROGATE.search(value)
+        ):
+            line, column = locate_in(tree, where)
+            raise ManifestError(
+                f"{dotted(where)} holds an unpaired UTF-16 surrogate escape (\\ud800-\\udfff)",
+                path=path,
+                line=line,
+                column=column,
+                hint="write the character itself, or a \\U escape of a real code point",
+            )
+        _check_surrogates(value, tree, path, where)
+
+
+# Hard limits on numbers the schema accepts but no blend space can use: a grid of 10**1000 cells
+# overflows a float, an axis of +-1e308 has no finite width, a unit of 9e18 m is not a rig.
+MAX_DIVISIONS = 100_000
+MAX_AXIS_VALUE = 1e6
+MIN_AXIS_SPAN = 1e-6
+UNIT_RANGE = (1e-6, 1e6)  # metres per file unit
+MAX_CLIP_ENTRIES = 10_000
+MAX_SECONDS = 1e6  # a `range:` end; any real take is far shorter
+
+
+def _check_limits(model: Manifest, tree: CommentedMap, path: Path) -> None:
+    def fail(key_path: KeyPath, message: str, hint: str) -> NoReturn:
+        line, column = locate_in(tree, key_path)
+        raise ManifestError(message, path=path, line=line, column=column, hint=hint)
+
+    for name in ("x", "y"):
+        axis = getattr(model.axes, name)
+        where: KeyPath = ("axes", name)
+        if axis.divisions > MAX_DIVISIONS:
+            fail(
+                (*where, "divisions"),
+                f"axes.{name}.divisions: {_number(axis.divisions)} is more than the limit of {MAX_DIVISIONS:,}",
+                "a few hundred grid intervals are plenty; e.g. divisions: 100",
+            )
+        for end in ("min", "max"):
+            value = getattr(axis, end)
+            if not math.isfinite(value) or abs(value) > MAX_AXIS_VALUE:
+                fail(
+                    (*where, end),
+                    f"axes.{name}.{end}: {value:g} is out of range (|value| <= {MAX_AXIS_VALUE:g})",
+                    "give the axis range in the feature's unit, e.g. min: -180, max: 180",
+                )
+        if axis.max - axis.min < MIN_AXIS_SPAN:
+            fail(
+                (*where, "max"),
+                f"axes.{name}: the range {axis.min:g}..{axis.max:g} is too narrow",
+                "widen the range so clips can differ along it",
+            )
+    for index, entry in enumerate(model.clips):
+        trim = entry.range if isinstance(entry.range, tuple | list) else None
+        if trim is not None and not all(math.isfinite(v) and abs(v) <= MAX_SECONDS for v in trim):
+            fail(
+                ("clips", index, "range"),
+                f"clips[{index}].range: {trim[0]:g}..{trim[1]:g} s is out of range (0..{MAX_SECONDS:g} s)",
+                "give the trim in seconds of the clip, e.g. range: [0.5, 2.5]",
+            )
+    settings: list[tuple[KeyPath, object]] = [(("skeleton",), model.skeleton)]
+    for index, entry in enumerate(model.clips):
+        own = getattr(entry, "skeleton", None)
+        if own is not None:
+            settings.append((("clips", index, "skeleton"), own))
+    for key_path, skeleton in settings:
+        units = getattr(skeleton, "units", "auto")
+        if isinstance(units, int | float) and not UNIT_RANGE[0] <= units <= UNIT_RANGE[1]:
+            fail(
+                (*key_path, "units"),
+                f"{dotted(key_path)}.units: {_number(units)} metres per unit is out of range "
+                f"({UNIT_RANGE[0]:g}..{UNIT_RANGE[1]:g})",
+                "use a named unit (m, cm, mm, in) or metres per file unit, e.g. units: 0.01 for cm",
+            )
+    if len(model.clips) > MAX_CLIP_ENTRIES:
+        fail(
+            ("clips",),
+            f"the manifest lists {len(model.clips):,} clip entries, more than the limit of {MAX_CLIP_ENTRIES:,}",
+            "use globs (clips/*.bvh) or split the blend space",
+        )
 
 
 def _check_hand_positions(model: Manifest, tree: CommentedMap, path: Path) -> None:
@@ -113,9 +208,40 @@ def _check_hand_positions(model: Manifest, tree: CommentedMap, path: Path) -> No
                 )
 
 
+MAX_MANIFEST_BYTES = 10 * 1024 * 1024  # a manifest is a few kB; a huge one is an accident or hostile
+
+
+def _read_manifest_bytes(path: Path) -> bytes:
+    """The manifest's bytes: a regular file only (a FIFO would hang, /dev/zero fill the memory)."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    handle = os.open(path, flags)
+    try:
+        info = os.fstat(handle)
+        if stat.S_ISDIR(info.st_mode):
+            raise IsADirectoryError(21, "Is a directory", str(path))
+        if not stat.S_ISREG(info.st_mode):
+            raise ManifestError(
+                "the manifest is not a regular file (a device, FIFO or socket)",
+                path=path,
+                hint="pass the manifest's YAML file",
+            )
+        if info.st_size > MAX_MANIFEST_BYTES:
+            raise ManifestError(
+                f"the manifest is {info.st_size:,} bytes, more than the limit of {MAX_MANIFEST_BYTES:,}",
+                path=path,
+                hint="a manifest lists clips and settings; use globs for long clip lists",
+            )
+        with os.fdopen(handle, "rb") as stream:
+            handle = -1
+            return stream.read(MAX_MANIFEST_BYTES + 1)
+    finally:
+        if handle >= 0:
+            os.close(handle)
+
+
 def _read_text(path: Path) -> str:
     try:
-        data = path.read_bytes()
+        data = _read_manifest_bytes(path)
     except FileNotFoundError:
         raise ManifestError("manifest not found", path=path, hint=_nearby_hint(path)) from None
     except IsADirectoryError:
@@ -565,6 +691,8 @@ def _suggest(word: str, choices: list[str], label: str) -> str:
 
 
 def _number(value: object) -> str:
+    if isinstance(value, int) and abs(value) >= 10**15:
+        return f"a {len(str(abs(value)))}-digit number"  # never print 1,000 digits into a message
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 

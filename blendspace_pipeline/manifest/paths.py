@@ -9,6 +9,7 @@ lists a folder in. Anything that cannot match is an error at the entry's line.
 from __future__ import annotations
 
 import difflib
+import fnmatch
 import glob
 import os
 import re
@@ -88,7 +89,7 @@ def _absolute(loaded: LoadedManifest, text: str) -> Path:
 def _is_glob(loaded: LoadedManifest, entry: ClipEntry) -> bool:
     text = _pattern(entry)
     # A file really named `walk[1].bvh` is that file, not a character class.
-    return bool(_GLOB_CHARACTERS.search(text)) and not _absolute(loaded, text).is_file()
+    return bool(_GLOB_CHARACTERS.search(text)) and not _safe_is_file(_absolute(loaded, text))
 
 
 def _files_of(loaded: LoadedManifest, entry: ClipEntry, key: KeyPath) -> list[Path]:
@@ -110,9 +111,16 @@ def _files_of(loaded: LoadedManifest, entry: ClipEntry, key: KeyPath) -> list[Pa
 
 def _plain_file(loaded: LoadedManifest, text: str, key: KeyPath) -> Path:
     path = _absolute(loaded, text)
-    if path.is_file():
+    if len(path.name.encode()) > 255 or len(str(path).encode()) > 4095:
+        _fail(
+            loaded,
+            key,
+            f"the clip path is too long for the file system ({len(text)} characters)",
+            "file names hold at most 255 bytes; rename the clip file",
+        )
+    if _safe_is_file(path):
         return path
-    if path.is_dir():
+    if _safe_is_dir(path):
         _fail(
             loaded,
             key,
@@ -136,14 +144,28 @@ def _missing_hint(path: Path) -> str:
     return f"looked in {folder}, which holds: {_listing([folder / n for n in names]) or 'no files'}"
 
 
+# A glob visits at most this many folder entries: a clip library is thousands of files, a symlink
+# farm or the root of a disk is millions.
+MAX_GLOB_ENTRIES = 200_000
+MAX_CLIP_FILES = 10_000
+
+
 def _glob(loaded: LoadedManifest, text: str, key: KeyPath) -> list[Path]:
     root, pattern = _split_glob(loaded, text)
-    found = (
-        [Path(os.path.normpath(root / name)) for name in glob.glob(pattern, root_dir=root, recursive=True)]
-        if root.is_dir()
-        else []
-    )
-    files = sorted((p for p in found if p.is_file()), key=lambda p: p.as_posix())
+    if not _safe_is_dir(root):
+        found: list[Path] = []
+    elif "**" in pattern:
+        found = _walk_glob(loaded, root, pattern, key)
+    else:
+        found = [Path(os.path.normpath(root / name)) for name in glob.glob(pattern, root_dir=root)]
+    files = sorted((p for p in found if _safe_is_file(p)), key=lambda p: p.as_posix())
+    if len(files) > MAX_CLIP_FILES:
+        _fail(
+            loaded,
+            key,
+            f"glob {text!r} matched {len(files):,} files, more than the limit of {MAX_CLIP_FILES:,}",
+            "narrow the glob to the clips of this blend space",
+        )
     readable = set(supported_suffixes())
     clips = [p for p in files if p.suffix.lower() in readable]
     if not clips:
@@ -154,6 +176,74 @@ def _glob(loaded: LoadedManifest, text: str, key: KeyPath) -> list[Path]:
             _no_match_hint(root, files, readable),
         )
     return clips
+
+
+def _walk_glob(loaded: LoadedManifest, root: Path, pattern: str, key: KeyPath) -> list[Path]:
+    """`**` globbing that visits every real folder once.
+
+    `glob.glob(recursive=True)` follows folder symlinks without remembering where it has been, so
+    two links to `.` make it walk an exponential tree (a hang). Here each folder is entered once,
+    by its resolved path, and hidden names are skipped as glob skips them.
+    """
+    parts = tuple(p for p in pattern.split("/") if p)
+    found: list[Path] = []
+    seen: set[Path] = set()
+    visited = 0
+    pending: list[tuple[Path, tuple[str, ...]]] = [(root, ())]
+    while pending:
+        folder, relative = pending.pop()
+        try:
+            real = folder.resolve()
+            if real in seen:
+                continue
+            seen.add(real)
+            entries = sorted(os.scandir(folder), key=lambda e: e.name)
+        except OSError:
+            continue  # unreadable folder or a loop the resolver refused: nothing to match there
+        for entry in entries:
+            visited += 1
+            if visited > MAX_GLOB_ENTRIES:
+                _fail(
+                    loaded,
+                    key,
+                    f"glob {pattern!r} visits more than {MAX_GLOB_ENTRIES:,} folder entries",
+                    "start the glob in the clip folder (e.g. clips/**/*.bvh), not at a large tree",
+                )
+            if entry.name.startswith("."):
+                continue
+            names = (*relative, entry.name)
+            try:
+                is_dir = entry.is_dir()
+            except OSError:
+                continue
+            if is_dir:
+                pending.append((Path(entry.path), names))
+            elif _matches(parts, names):
+                found.append(Path(os.path.normpath(entry.path)))
+    return found
+
+
+def _matches(pattern: tuple[str, ...], names: tuple[str, ...]) -> bool:
+    """Whether the path components ``names`` match the glob components (`**` = any folders)."""
+    if not pattern:
+        return not names
+    if pattern[0] == "**":
+        return any(_matches(pattern[1:], names[skip:]) for skip in range(len(names) + 1))
+    return bool(names) and fnmatch.fnmatchcase(names[0], pattern[0]) and _matches(pattern[1:], names[1:])
+
+
+def _safe_is_file(path: Path) -> bool:
+    try:
+        return path.is_file()
+    except OSError:  # a name longer than the file system allows, a symlink loop
+        return False
+
+
+def _safe_is_dir(path: Path) -> bool:
+    try:
+        return path.is_dir()
+    except OSError:
+        return False
 
 
 def _split_glob(loaded: LoadedManifest, text: str) -> tuple[Path, str]:

@@ -34,7 +34,9 @@ def cache_dir() -> Path | None:
 
 # Bumped whenever the same clip would measure differently (a new feature, a changed detection),
 # so a developer's or CI's cache never serves results of older code under an unchanged version.
-MEASUREMENT_REVISION = 4  # 3: detection from the body, sway-free heading; 4: foot contacts and plant phases
+# 3: detection from the body, sway-free heading; 4: foot contacts and plant phases;
+# 5: readers refuse out-of-range data (frame rate, angles, sizes) that earlier revisions measured.
+MEASUREMENT_REVISION = 5
 
 
 def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | str | None) -> str:

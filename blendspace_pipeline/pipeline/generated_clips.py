@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from blendspace_pipeline import __version__
+from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
 from blendspace_pipeline.readers.provenance import Provenance
 from blendspace_pipeline.space.model import BlendSpace
@@ -82,15 +83,15 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
     record = provenance_of(generated)
     written: list[Path] = []
     if "usd" in formats or source_suffix(space) == CLIP_SUFFIXES["usd"]:
-        written.append(folder / f"{clip.name}.usda")
+        written.append(folder / f"{safe_file_stem(clip.name)}.usda")
         write_usd_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     if "glb" in formats:
-        written.append(folder / f"{clip.name}.glb")
+        written.append(folder / f"{safe_file_stem(clip.name)}.glb")
         write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     template = bvh_template(space, generated) if "bvh" in formats else None
     if template is not None:
         from blendspace_pipeline.writers.bvh import write_bvh_clip
 
-        written.append(folder / f"{clip.name}.bvh")
+        written.append(folder / f"{safe_file_stem(clip.name)}.bvh")
         write_bvh_clip(clip, written[-1], template=template, provenance=record)
     return written

@@ -14,6 +14,7 @@ from blendspace_pipeline.motion.measure import Measurement, TimeRange, measure
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.readers.limits import check_regular
 from blendspace_pipeline.space.model import MeasuredClip
 
 
@@ -41,6 +42,7 @@ def entry_settings(top: SkeletonSettings, entry: ClipEntry) -> SkeletonSettings:
 
 def measure_file(path: Path, settings: RigSettings, time_range: TimeRange) -> list[tuple[str, Measurement]]:
     """Measurements of every animation in ``path``, from the cache when the file is unchanged."""
+    check_regular(path, what="clip file")  # hashing a FIFO for the cache key would hang
     key = cache.cache_key(path, settings.cache_key(), time_range)
     cached = cache.load(key)
     if cached is not None:

@@ -1,26 +1,55 @@
-"""`build`: analyse, then write every output atomically.
+"""`build`: analyse, then publish every output as one set.
 
-Outputs are written into a staging folder next to the output folder and moved into place only
-when all of them succeeded, so a failed build leaves nothing behind (and a folder the build
-created is removed again).
+Generation folders (readers of the documents see the old set or the new set, never a mix):
+
+    OUT/N.blendspace.json          -> .blendspace/N/current/N.blendspace.json   (stable symlinks)
+    OUT/.blendspace/N/current      -> g-<content hash>                            (the one pointer)
+    OUT/.blendspace/N/g-<hash>/    the files of one build (documents and generated clips)
+    OUT/clips/walk_mirror.usda     a real file (hard link into the generation, else a copy)
+
+1. Every output is written into `OUT/.blendspace-staging-<pid>-<random>/` (same file system).
+2. Each file is synced and checked against its format (`report.atomic.verify_written`): a full
+   disk that a library did not report is an error, never a published truncated file.
+3. The staging folder is renamed to `g-<hash of its contents>` (identical builds reuse it, so a
+   rebuild is byte- and path-identical), then `current` is switched by one `os.replace` of a new
+   symlink: that rename is the moment the whole set changes.
+   Generated clips are placed as real files just before that rename (engines import them as
+   assets; Unity does not support symlinked assets, exporters resolve paths): each one is
+   replaced in one rename, but the clips are not switched together with the documents.
+4. The user-visible links of the documents (JSON, USD, HTML, PNG) are (re)made, links of files
+   the new set no longer has are removed, and older generations are deleted.
+
+A failure before the switch leaves the previous documents untouched (and removes a folder the
+build created); only a failure between placing the clips and the switch leaves new clips beside
+the previous documents. Staging folders of killed builds (their pid no longer runs) are removed by the next
+build. Where symlinks cannot be made (Windows without developer mode) the files are moved into
+place one by one as before. A writer that wants to skip an unchanged output can copy it from the
+previous generation (`OUT/.blendspace/N/current/<file>`) into the staging folder.
 """
 
 from __future__ import annotations
 
+import errno
+import hashlib
+import os
 import re
 import shutil
 import tempfile
-from collections.abc import Callable, Sequence
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
+from blendspace_pipeline.report.atomic import verify_written
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace
 
@@ -101,7 +130,8 @@ def write_outputs(
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
     disk full) is bad input, exit 2, and leaves nothing behind."""
     try:
-        return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {})
+        with _usd_errors_as_os_errors():
+            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {})
     except OSError as error:
         where = error.filename or out_dir
         raise InputError(
@@ -109,6 +139,25 @@ def write_outputs(
             path=space.manifest.path,
             hint="point --out (or output.dir in the manifest) at a folder you can write to",
         ) from None
+
+
+@contextmanager
+def _usd_errors_as_os_errors() -> Iterator[None]:
+    """USD reports a failed write (a full disk) as `Tf.ErrorException` with pages of detail: it is
+    the same refusal of the file system as an OSError, so it gets the same one-line exit 2."""
+    try:
+        yield
+    except Exception as error:
+        if not type(error).__module__.startswith("pxr"):
+            raise
+        try:
+            text = str(error)
+        except UnicodeDecodeError:
+            text = ""
+        if "writ" not in text.lower() and "save" not in text.lower():
+            raise  # not a refused write: a bug, exit 3
+        detail = re.search(r"'([^'\n]*(?:writ|space|disk)[^'\n]*)'", text, re.IGNORECASE)
+        raise OSError(errno.EIO, detail.group(1) if detail else "USD could not write a file") from None
 
 
 def _write_outputs(
@@ -130,35 +179,171 @@ def _write_outputs(
     for sub, _, folder in made:
         for sample in sub.samples:
             if sample.generated:
-                sample.clip.source = out_dir / folder / f"{sample.name}{source_suffix(sub)}"
+                sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}{source_suffix(sub)}"
     document = to_document(space, out_dir)
     # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
     document.blend_quality = blend_quality(space, document, {n: g.clip for n, g in fixes.generated.items()})
-    staging = Path(tempfile.mkdtemp(prefix=".blendspace-staging-", dir=out_dir))
+    remove_stale_staging(out_dir)
+    staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
     try:
-        staged: list[tuple[Path, Path]] = []
+        staged: list[Path] = []  # relative to staging (and to out_dir)
         for sub, state, folder in made:
             in_space = {s.name for s in sub.samples}
             for name in sorted(state.generated):
                 if name in in_space:
                     for path in write_generated_clip(sub, state.generated[name], staging / folder):
-                        staged.append((path, out_dir / folder / path.name))
+                        staged.append(path.relative_to(staging))
         writers = _writers(space)
         for name in formats:
             suffix, writer = writers[name]
-            target = out_dir / f"{space.name}{suffix}"
-            writer(document, staging / target.name)
-            staged.append((staging / target.name, target))
-        for source, target in staged:
-            target.parent.mkdir(parents=True, exist_ok=True)
-            source.replace(target)
-        return document, [target for _, target in staged]
+            file_name = f"{space.name}{suffix}"
+            writer(document, staging / file_name)
+            staged.append(Path(file_name))
+        for relative in staged:
+            verify_written(staging / relative)
+        publish(staging, out_dir, safe_file_stem(space.name), staged)
+        return document, [out_dir / relative for relative in staged]
     except BaseException:
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+STAGING_PREFIX = ".blendspace-staging-"
+GENERATIONS = ".blendspace"
+CURRENT = "current"
+_STALE_SECONDS = 3600  # a staging folder whose name carries no pid is stale after an hour
+
+
+def remove_stale_staging(out_dir: Path) -> None:
+    """Remove the staging folders of builds that were killed (their process no longer runs)."""
+    for folder in out_dir.glob(f"{STAGING_PREFIX}*"):
+        pid_text = folder.name[len(STAGING_PREFIX) :].split("-", 1)[0]
+        try:
+            if pid_text.isdigit():
+                if _running(int(pid_text)):
+                    continue
+            elif time.time() - folder.lstat().st_mtime < _STALE_SECONDS:
+                continue
+        except OSError:
+            continue
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def _content_hash(staging: Path, files: Sequence[Path]) -> str:
+    digest = hashlib.sha256()
+    for relative in sorted(files, key=lambda p: p.as_posix()):
+        digest.update(relative.as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256((staging / relative).read_bytes()).digest())
+    return digest.hexdigest()[:16]
+
+
+def _symlinks_work(folder: Path) -> bool:
+    probe = folder / f".blendspace-probe-{os.getpid()}"
+    try:
+        os.symlink("x", probe)
+    except (OSError, NotImplementedError):
+        return False
+    probe.unlink()
+    return True
+
+
+def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> None:
+    """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above)."""
+    if not _symlinks_work(out_dir):
+        for relative in files:
+            target = out_dir / relative
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(staging / relative, target)
+        return
+    home = out_dir / GENERATIONS / name
+    home.mkdir(parents=True, exist_ok=True)
+    generation = f"g-{_content_hash(staging, files)}"
+    if not (home / generation).is_dir():
+        os.replace(staging, home / generation)
+    documents = [relative for relative in files if relative.parent == Path(".")]
+    # Generated clips are real files (hard links into the generation, else copies): engines import
+    # them as assets (Unity does not support symlinked assets) and exporters resolve their paths,
+    # which must not lead into a generation folder that the next build deletes. They are placed
+    # before the switch, so the new documents never name a clip that is not there yet.
+    for relative in files:
+        if relative not in documents:
+            _place(home / generation / relative, out_dir / relative)
+    pointer = home / CURRENT
+    previous = os.readlink(pointer) if pointer.is_symlink() else None
+    if previous != generation:
+        switch = home / f".{CURRENT}-{os.getpid()}"
+        switch.unlink(missing_ok=True)
+        os.symlink(generation, switch)
+        os.replace(switch, pointer)  # the one rename that swaps the whole set
+    wanted = {out_dir / relative for relative in files}
+    for relative in documents:
+        _link(out_dir / relative, home / CURRENT / relative)
+    _drop_dangling_links(out_dir, home, wanted)
+    for old in home.glob("g-*"):
+        if old.name != generation:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def _place(source: Path, target: Path) -> None:
+    """``target`` becomes a real file with ``source``'s content, in one rename."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if target.is_file() and not target.is_symlink() and os.path.samefile(source, target):
+        return  # already this generation's file (an identical rebuild)
+    temporary = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    temporary.unlink(missing_ok=True)
+    try:
+        os.link(source, temporary)
+    except OSError:  # no hard links on this file system
+        shutil.copy2(source, temporary)
+    if target.is_dir() and not target.is_symlink():
+        shutil.rmtree(target)
+    os.replace(temporary, target)
+    temporary.unlink(missing_ok=True)  # rename between two links of one file does nothing (POSIX)
+
+
+def _link(link: Path, target: Path) -> None:
+    link.parent.mkdir(parents=True, exist_ok=True)
+    relative = os.path.relpath(target, link.parent)
+    if link.is_symlink() and os.readlink(link) == relative:
+        return
+    temporary = link.with_name(f".{link.name}.{os.getpid()}.link")
+    temporary.unlink(missing_ok=True)
+    os.symlink(relative, temporary)
+    if link.is_dir() and not link.is_symlink():
+        shutil.rmtree(link)
+    os.replace(temporary, link)  # over a previous build's real file too
+
+
+def _drop_dangling_links(out_dir: Path, home: Path, wanted: set[Path]) -> None:
+    """Links into this blend space's `current` for files the new set does not have."""
+    pointer = home / CURRENT
+    for folder in [
+        out_dir,
+        *(p for p in (out_dir / "clips").rglob("*") if p.is_dir() and not p.is_symlink()),
+    ]:
+        if not folder.is_dir():
+            continue
+        for link in folder.iterdir():
+            if link in wanted or not link.is_symlink():
+                continue
+            target = Path(os.path.normpath(link.parent / os.readlink(link)))
+            if target.is_relative_to(pointer) and not target.exists():
+                link.unlink(missing_ok=True)
 
 
 def build(

@@ -44,12 +44,22 @@ class FileState:
     sha256: str  # "" for folders and missing files
 
 
+RESULT_VARIABLES = (
+    "BLENDSPACE_NO_PLUGINS",
+    "BLENDSPACE_RULE_PATH",
+    "BLENDSPACE_MAX_FRAMES",
+    "SOURCE_DATE_EPOCH",
+)
+
+
 def invocation_key(command: str, manifests: Sequence[Path], options: dict[str, object]) -> str:
     """What makes two runs the same: the command, its manifests and options, where it runs."""
     described = {
         "command": command,
         "manifests": [str(Path(m).absolute()) for m in manifests],
         "options": {k: str(v) for k, v in sorted(options.items())},
+        # Switches that change what a run reads or reports (plugins, rule folders, limits, dates).
+        "environment": {name: os.environ.get(name, "") for name in RESULT_VARIABLES},
         "cwd": os.getcwd(),
         "version": __version__,
         "revision": MEASUREMENT_REVISION,

@@ -90,7 +90,7 @@ def layer_doc(layer: Layer, out_dir: Path) -> BetaLayerDoc | StyleLayerDoc:
             source=relative_path(layer.manifest, out_dir),
             samples=[_sample_doc(s, out_dir) for s in sub.samples],
             triangles=[list(t) for t in sub.triangles],
-            diagnostics=[diagnostic_doc(d) for d in sub.all_diagnostics()],
+            diagnostics=[diagnostic_doc(d, out_dir) for d in sub.all_diagnostics()],
         )
     axis = layer.axis
     return StyleLayerDoc(
@@ -114,10 +114,13 @@ def layer_doc(layer: Layer, out_dir: Path) -> BetaLayerDoc | StyleLayerDoc:
     )
 
 
-def diagnostic_doc(diagnostic: Diagnostic) -> DiagnosticDoc:
+def diagnostic_doc(diagnostic: Diagnostic, out_dir: Path | None = None) -> DiagnosticDoc:
+    """``out_dir`` given: the location is relative to it, like every other path in the document,
+    so a build's JSON and HTML do not depend on the working folder or how the manifest was typed."""
     location = None
     if diagnostic.path is not None:
-        location = LocationDoc(path=diagnostic.path, line=diagnostic.line, column=diagnostic.column)
+        where = diagnostic.path if out_dir is None else relative_path(Path(diagnostic.path), out_dir)
+        location = LocationDoc(path=where, line=diagnostic.line, column=diagnostic.column)
     return DiagnosticDoc(
         rule=diagnostic.rule,
         code=diagnostic.code,
@@ -149,7 +152,7 @@ def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
         ],
         samples=[_sample_doc(s, out_dir) for s in space.samples],
         triangles=[list(t) for t in space.triangles],
-        diagnostics=[diagnostic_doc(d) for d in space.diagnostics],
+        diagnostics=[diagnostic_doc(d, out_dir) for d in space.diagnostics],
         placeholders=[
             PlaceholderDoc(
                 position=[_r(v) for v in p.position],

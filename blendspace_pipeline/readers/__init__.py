@@ -13,6 +13,12 @@ from types import ModuleType
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, validate_clip
+from blendspace_pipeline.readers.limits import (
+    REFERENCE_ROOTS,
+    allowed_roots,
+    check_clip_limits,
+    check_regular,
+)
 
 # Module names, not imports: an adapter's heavy dependency (pxr) loads only when used.
 _ADAPTERS = {
@@ -57,11 +63,28 @@ def adapter_for(path: Path) -> ModuleType:
 
 
 def read_clips(path: Path) -> list[Clip]:
-    """All animations in ``path`` as validated clips."""
+    """All animations in ``path`` as validated clips, within the limits of `limits`.
+
+    Files the clip refers to (glTF buffers, USD layers) are read only inside the clip's own folder
+    tree (`limits.confined`).
+    """
     adapter = adapter_for(path)
-    if not path.is_file():
+    try:
+        exists = path.is_file()
+    except OSError:  # a name too long for the file system, a loop of symlinks
+        exists = False
+    if not exists:
         raise ClipReadError("clip file not found", path=path, hint="check the path in the manifest")
-    clips: list[Clip] = adapter.read(path)
+    check_regular(path, what="clip file")
+    roots = allowed_roots(path)
+    token = REFERENCE_ROOTS.set(roots)
+    try:
+        clips: list[Clip] = adapter.read(path)
+    finally:
+        REFERENCE_ROOTS.reset(token)
     if not clips:
         raise ClipReadError("file holds no animation", path=path, hint="export at least one animation")
-    return [validate_clip(clip) for clip in clips]
+    for clip in clips:
+        validate_clip(clip)
+        check_clip_limits(clip)
+    return clips

@@ -25,6 +25,14 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.limits import (
+    MAX_FPS,
+    MAX_FRAMES_VARIABLE,
+    MAX_TRANSLATION,
+    MIN_FPS,
+    max_frames,
+    read_regular_file,
+)
 from blendspace_pipeline.readers.provenance import strip_bvh_provenance
 
 SUFFIXES = (".bvh",)
@@ -33,6 +41,8 @@ _ROTATION = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
 _MOTION = re.compile(r"^[ \t]*MOTION[ \t]*\r?$", re.MULTILINE | re.IGNORECASE)
 _FRAME_TIME = re.compile(r"^[ \t]*Frame[ \t]*Time[ \t]*:[^\n]*", re.MULTILINE | re.IGNORECASE)
 _FRAMES = re.compile(r"^[ \t]*Frames[ \t]*:[^\n]*", re.MULTILINE | re.IGNORECASE)
+# Unwrapped angles of a long take can pass a few thousand degrees; a million is corrupt data.
+_MAX_ANGLE = 1e6
 _REEXPORT = "re-export the clip as BVH from the DCC or mocap software"
 
 
@@ -95,10 +105,9 @@ def _split_header(text: str, path: Path) -> tuple[BvhHeader, int]:
 
 
 def _text(path: Path) -> str:
-    try:
-        raw = path.read_bytes()
-    except OSError as error:
-        raise ClipReadError(f"cannot read the file: {error.strerror or error}", path=path) from None
+    raw = read_regular_file(path, what="BVH file")
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]  # a UTF-8 byte-order mark, written by some Windows tools
     if b"\x00" in raw[:4096]:
         raise ClipReadError("not a text BVH file (binary data)", path=path, line=1, hint=_REEXPORT)
     if b"\r" in raw and b"\n" not in raw:
@@ -163,7 +172,9 @@ def parse_header(lines: list[str], path: Path) -> BvhHeader:
             if not stack:
                 raise ClipReadError("OFFSET outside a joint", path=path, line=number, hint=_REEXPORT)
             if stack[-1] == -2:
-                owner = next(i for i in reversed(stack) if i >= 0)
+                owner = next((i for i in reversed(stack) if i >= 0), None)
+                if owner is None:  # a stray `{` opened a block that belongs to no joint
+                    raise ClipReadError("OFFSET outside a joint", path=path, line=number, hint=_REEXPORT)
                 header.joints[owner].end_site = offset
             else:
                 header.joints[stack[-1]].offset = offset
@@ -278,8 +289,23 @@ def _motion_header(lines: list[str], index: int, header: BvhHeader, path: Path) 
             line=found["frame time"][1],
             hint="e.g. 'Frame Time: 0.033333' for 30 fps",
         )
+    if not 1.0 / MAX_FPS <= header.frame_time <= 1.0 / MIN_FPS:
+        raise ClipReadError(
+            f"Frame Time {found['frame time'][0][:30]!r} is {1.0 / header.frame_time:.6g} fps, "
+            f"outside {MIN_FPS:g}..{MAX_FPS:g} fps",
+            path=path,
+            line=found["frame time"][1],
+            hint="e.g. 'Frame Time: 0.033333' for 30 fps",
+        )
     header.frames_line = found["frames"][1]
     header.data_line = index + 1
+    if header.frames > max_frames():
+        raise ClipReadError(
+            f"the clip has {header.frames:,} frames, more than the limit of {max_frames():,}",
+            path=path,
+            line=header.frames_line,
+            hint=f"trim or split the take, or raise the limit with {MAX_FRAMES_VARIABLE}=<frames>",
+        )
     if header.frames <= 0:
         raise ClipReadError(
             f"the clip has no frames (Frames: {header.frames})",
@@ -312,9 +338,31 @@ def _motion(data: str, data_start: int, header: BvhHeader, path: Path) -> FloatA
             values = np.fromstring(data, dtype=np.float64, sep=" ")
         except (ValueError, DeprecationWarning):
             values = np.zeros(0)
-    if values.size == header.frames * channels and np.isfinite(values).all():
-        return values.reshape(header.frames, channels)
-    return _motion_slow(data.split("\n"), data_start, header, path)
+    if not (values.size == header.frames * channels and np.isfinite(values).all()):
+        values = _motion_slow(data.split("\n"), data_start, header, path)
+    values = values.reshape(header.frames, channels)
+    _check_magnitudes(values, header, data_start, path)
+    return values
+
+
+def _check_magnitudes(values: FloatArray, header: BvhHeader, data_start: int, path: Path) -> None:
+    """Angles beyond `_MAX_ANGLE` degrees and positions beyond `MAX_TRANSLATION` are corrupt data:
+    finite, but sine and cosine of 1e308 mean nothing and positions that big overflow FK."""
+    rotation = np.array(
+        [name.lower() in _ROTATION for joint in header.joints for name in joint.channels], dtype=bool
+    )
+    limits = np.where(rotation, _MAX_ANGLE, MAX_TRANSLATION)
+    over = np.abs(values) > limits
+    if over.any():
+        frame, column = (int(i) for i in np.argwhere(over)[0])
+        kind = "rotation" if rotation[column] else "position"
+        raise ClipReadError(
+            f"frame {frame}, channel {column + 1}: {kind} {values[frame, column]:.6g} is out of range "
+            f"(|value| <= {limits[column]:g})",
+            path=path,
+            line=data_start + 1 + frame,
+            hint="such a value is corrupt data; " + _REEXPORT,
+        )
 
 
 def _motion_slow(lines: list[str], data_start: int, header: BvhHeader, path: Path) -> FloatArray:

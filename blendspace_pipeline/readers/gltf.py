@@ -33,6 +33,7 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton, topological_order
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.limits import confined, current_roots, read_regular_file
 
 SUFFIXES = (".gltf", ".glb")
 
@@ -108,10 +109,7 @@ class _Document:
 
     @classmethod
     def load(cls, path: Path) -> _Document:
-        try:
-            data = path.read_bytes()
-        except OSError as error:
-            raise _error(path, f"cannot read the file: {error.strerror or error}", "check the path") from None
+        data = read_regular_file(path, what="glTF file")
         if data[:4] == _GLB_MAGIC:
             root, glb_bin = _parse_glb(path, data)
         elif path.suffix.lower() == ".glb":
@@ -129,7 +127,7 @@ class _Document:
         if not isinstance(version, str) or not version.startswith("2."):
             raise _error(
                 self.path,
-                f"glTF version {version!r} is not supported (asset.version must be 2.x)",
+                f"glTF version {_show(version)} is not supported (asset.version must be 2.x)",
                 "convert the file to glTF 2.0 (e.g. import and re-export in Blender)",
             )
 
@@ -153,7 +151,7 @@ class _Document:
     def integer(self, obj: dict[str, Any], key: str, where: str, default: int | None = None) -> int:
         value = obj.get(key, default)
         if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-            state = "missing" if key not in obj else f"{value!r}, not a non-negative integer"
+            state = "missing" if key not in obj else f"{_show(value)}, not a non-negative integer"
             raise _error(self.path, f"{_join(where, key)} is {state}")
         return value
 
@@ -161,11 +159,11 @@ class _Document:
         value = obj.get(key, default)
         try:
             array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: an integer beyond float range
             array = np.empty(0)
         if array.shape != (len(default),) or not np.isfinite(array).all():
             raise _error(
-                self.path, f"{_join(where, key)} must be {len(default)} finite numbers, not {value!r}"
+                self.path, f"{_join(where, key)} must be {len(default)} finite numbers, not {_show(value)}"
             )
         return array
 
@@ -257,13 +255,13 @@ class _Document:
                 f"{pointer} refers to a remote file ({uri})",
                 "download the buffer beside the .gltf",
             )
-        file = self.path.parent / unquote(uri)
+        file = confined(self.path, unquote(uri), current_roots(self.path), what=f"{pointer} uri")
         try:
-            return file.read_bytes()
-        except OSError:
+            return read_regular_file(file, what=f"external buffer {uri!r}")
+        except ClipReadError as error:
             raise _error(
                 self.path,
-                f"{pointer}: the external buffer {uri!r} cannot be read",
+                f"{pointer}: {error.message}",
                 "keep the .bin file beside the .gltf, or export a single .glb",
             ) from None
 
@@ -272,11 +270,13 @@ class _Document:
         pointer = f"accessors[{index}]"
         accessor = self.item("accessors", index, where)
         component = accessor.get("componentType")
-        if component not in _COMPONENTS:
-            raise _error(self.path, f"{pointer}.componentType {component!r} is not a glTF component type")
+        if not isinstance(component, int) or component not in _COMPONENTS:  # a list is unhashable
+            raise _error(
+                self.path, f"{pointer}.componentType {_show(component)} is not a glTF component type"
+            )
         width = _WIDTHS.get(str(accessor.get("type")), 0)
         if width not in widths:
-            raise _error(self.path, f"{pointer} has type {accessor.get('type')!r}, unusable for {where}")
+            raise _error(self.path, f"{pointer} has type {_show(accessor.get('type'))}, unusable for {where}")
         count = self.integer(accessor, "count", pointer)
         dtype = np.dtype(_COMPONENTS[component]).newbyteorder("<")
         if "bufferView" in accessor:
@@ -333,7 +333,7 @@ class _Document:
         index_type = indices.get("componentType")
         if index_type not in (5121, 5123, 5125):
             raise _error(
-                self.path, f"{where}.indices.componentType {index_type!r} is not an unsigned integer"
+                self.path, f"{where}.indices.componentType {_show(index_type)} is not an unsigned integer"
             )
         index_dtype = np.dtype(_COMPONENTS[index_type]).newbyteorder("<")
         rows = self._view(
@@ -391,7 +391,9 @@ class _Document:
                 "'Always Sample Animations', interpolation Linear)",
             )
         if interpolation not in ("LINEAR", "STEP"):
-            raise _error(self.path, f"{where}.interpolation {interpolation!r} is not a glTF interpolation")
+            raise _error(
+                self.path, f"{where}.interpolation {_show(interpolation)} is not a glTF interpolation"
+            )
         times = self.accessor(channel.sampler_json.get("input"), f"{where}.input", (1,))[:, 0]
         width = _CHANNEL_WIDTHS[channel.path]
         values = self.accessor(channel.sampler_json.get("output"), f"{where}.output", (width,))
@@ -427,6 +429,15 @@ class _Channel:
 
 
 _TRUNCATED = "the file is truncated or corrupt; re-export or download it again"
+
+
+def _show(value: object, limit: int = 60) -> str:
+    """A short repr for messages: a fuzzed file may hold a 5,000-digit number or a huge list."""
+    try:
+        text = repr(value)
+    except ValueError:  # int too large to print
+        text = "a huge number"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _join(where: str, key: str) -> str:
@@ -466,6 +477,8 @@ def _parse_json(path: Path, data: bytes, offset: int) -> dict[str, Any]:
         root = json.loads(data.decode("utf-8-sig"))
     except UnicodeDecodeError:
         raise _error(path, f"not a glTF file: the JSON is not UTF-8 text{where}", _TRUNCATED) from None
+    except RecursionError:
+        raise _error(path, f"the glTF JSON nests too deeply to be a glTF file{where}", _TRUNCATED) from None
     except json.JSONDecodeError as error:
         line, column = (error.lineno, error.colno) if not offset else (None, None)
         raise ClipReadError(

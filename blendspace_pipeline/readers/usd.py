@@ -28,6 +28,7 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton, UpAxis
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.readers.limits import check_regular, confined, current_roots, read_regular_file
 from blendspace_pipeline.writers.usd_clip import FLAT_SKELETON_KEY
 
 SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -49,15 +50,75 @@ def read(path: Path) -> list[Clip]:
 
 
 def _open(path: Path) -> Usd.Stage:
+    _check_text(path)
+    _check_dependencies(path)
     stage = Usd.Stage.Open(str(path))
     if stage is None:
         raise ClipReadError("USD could not open the file", path=path, hint=_REEXPORT)
     return stage
 
 
+_MAX_LAYERS = 256  # sublayers and references of one clip, all together
+
+
+def _check_text(path: Path) -> None:
+    """A text USD file must be UTF-8: USD's own error for other bytes cannot even be printed."""
+    check_regular(path, what="USD file")
+    with open(path, "rb") as stream:
+        if stream.read(5) != b"#usda":
+            return  # binary crate or a package: USD reads those itself
+    data = read_regular_file(path, what="USD file")
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = data.count(b"\n", 0, error.start) + 1
+        column = error.start - (data.rfind(b"\n", 0, error.start) + 1) + 1
+        raise ClipReadError(
+            f"not valid USD: the text is not UTF-8 (byte 0x{data[error.start]:02x})",
+            path=path,
+            line=line,
+            column=column,
+            hint="save the file as UTF-8, or re-export it",
+        ) from None
+
+
+def _check_dependencies(path: Path) -> None:
+    """Every sublayer, reference and payload resolves inside the project and is a regular file,
+    checked layer by layer *before* USD composes (and so reads) any of them."""
+    roots = current_roots(path)
+    seen: set[str] = set()
+    pending = [str(path)]
+    while pending:
+        current = pending.pop()
+        if current in seen:
+            continue
+        seen.add(current)
+        if len(seen) > _MAX_LAYERS:
+            raise ClipReadError(
+                f"the clip composes more than {_MAX_LAYERS} layers", path=path, hint=_REEXPORT
+            )
+        layer = Sdf.Layer.FindOrOpen(current)
+        if layer is None:
+            continue  # Usd.Stage.Open reports it
+        dependencies = (
+            layer.GetCompositionAssetDependencies()
+            if hasattr(layer, "GetCompositionAssetDependencies")
+            else layer.externalReferences
+        )
+        for asset in dependencies:
+            if not asset:
+                continue
+            resolved = layer.ComputeAbsolutePath(asset)
+            outer = resolved.split("[", 1)[0]  # a file inside a .usdz package: check the package
+            target = confined(path, outer, roots, what=f"USD layer reference {asset!r}")
+            check_regular(target, what=f"USD layer {asset!r}")
+            if "[" not in resolved:
+                pending.append(str(target))
+
+
 def _usd_error(path: Path, error: Tf.ErrorException) -> ClipReadError:
     """The first USD error, with the text parser's ``file:line:col`` turned into our location."""
-    text = str(error)
+    text = _error_text(error)
     parsed = re.search(r":(\d+):(\d+): ([^\n]*)", text)
     if parsed:
         detail = parsed.group(3).rstrip("'")
@@ -75,6 +136,17 @@ def _usd_error(path: Path, error: Tf.ErrorException) -> ClipReadError:
         path=path,
         hint="the file is truncated, corrupt or not USD; " + _REEXPORT,
     )
+
+
+def _error_text(error: Tf.ErrorException) -> str:
+    # USD's errors quote the offending bytes; str() of a non-UTF-8 quote raises UnicodeDecodeError.
+    parts = []
+    for each in error.args:
+        try:
+            parts.append(str(each))
+        except UnicodeDecodeError:
+            parts.append("the file holds bytes that are not UTF-8 text")
+    return "\n".join(parts)
 
 
 def _read_stage(path: Path, stage: Usd.Stage) -> list[Clip]:
@@ -184,7 +256,14 @@ def _read_clip(
 
 def _read_layout(path: Path, skel: UsdSkel.Skeleton) -> _Layout:
     where = skel.GetPath()
-    paths = _tokens(skel.GetJointsAttr())
+    joints = skel.GetJointsAttr()
+    if joints.HasAuthoredValue() and joints.GetTypeName() != Sdf.ValueTypeNames.TokenArray:
+        raise ClipReadError(
+            f"Skeleton <{where}>: `joints` is {joints.GetTypeName()}, not token[]",
+            path=path,
+            hint='author joints as `uniform token[] joints = ["Hips", "Hips/Spine", ...]`',
+        )
+    paths = _tokens(joints)
     if not paths:
         raise ClipReadError(
             f"Skeleton <{where}> has no joints", path=path, hint="author the Skeleton's joints array"

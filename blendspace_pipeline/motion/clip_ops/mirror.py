@@ -21,6 +21,7 @@ from blendspace_pipeline.motion.clip import Clip, Skeleton, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.root_motion import decompose, ground_basis
 from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.motion.joint_names import split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -174,7 +175,7 @@ def mirror_clip(
     return replace(
         clip,
         name=name,
-        source=clip.source.with_name(f"{name}.generated"),
+        source=clip.source.with_name(f"{safe_file_stem(name)}.generated"),
         rotations=rotations,
         translations=translations,
         notes=[f"mirror of {clip.name} across the sagittal plane (left/right joints swapped)"],

@@ -19,6 +19,7 @@ from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.detect import RigSettings, resolve_facing, resolve_root, resolve_up
+from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 
@@ -129,7 +130,7 @@ def compose(
         translations[:, joint] = points + quat.rotate(yaw, motion.rel_positions[:, index])
     return Clip(
         name=name,
-        source=template.source.with_name(f"{name}.generated"),
+        source=template.source.with_name(f"{safe_file_stem(name)}.generated"),
         skeleton=template.skeleton,
         rotations=rotations,
         translations=translations,

@@ -1,0 +1,281 @@
+"""Faults while publishing outputs: kill -9 in the middle of writing, a full disk (a real
+size-limited tmpfs where the machine allows mounting one, and an injected ENOSPC / a library that
+says yes to a truncated PNG), and a failed rename. In every case a reader sees the previous build's
+complete set (or the new one), never a mix, and the next build cleans up."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline import outputs
+from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+NAMES = ("t.blendspace.json", "t.blendspace.usda", "t.report.html", "t.png")
+
+
+@pytest.fixture(autouse=True)
+def _isolated(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "user-cache"))
+
+
+def _project(root: Path, divisions: int = 100) -> Path:
+    clips = root / "clips"
+    clips.mkdir(parents=True, exist_ok=True)
+    for name, spec in {
+        "idle": GaitSpec("idle"),
+        "walk": GaitSpec("walk", speed=1.4),
+        "turn": GaitSpec("turn", turn_rate=90.0),
+    }.items():
+        if not (clips / f"{name}.usda").exists():
+            write_usd_clip(generate(spec), clips / f"{name}.usda", meters_per_unit=1.0, up_axis="y")
+    manifest = root / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: t\nclips:\n  - path: clips/*.usda\n"
+        f"axes:\n  x: {{feature: turn_rate, min: -180, max: 180, divisions: {divisions}}}\n",
+        encoding="utf-8",
+    )
+    return manifest
+
+
+def _outputs(out: Path, clips_too: bool = True) -> dict[str, bytes]:
+    """What a reader sees at the spec's paths (through the links), plus the generated clips."""
+    seen = {name: (out / name).read_bytes() for name in NAMES}
+    clips = out / "clips"
+    if clips_too and clips.is_dir():
+        seen |= {f"clips/{p.name}": p.read_bytes() for p in sorted(clips.iterdir())}
+    return seen
+
+
+def _outputs_of(seen: dict[str, bytes], clips_too: bool) -> dict[str, bytes]:
+    return {k: v for k, v in seen.items() if clips_too or not k.startswith("clips/")}
+
+
+def _consistent(out: Path) -> None:
+    """All four outputs are of one build: the JSON's divisions match the USD's."""
+    doc = json.loads((out / "t.blendspace.json").read_text(encoding="utf-8"))
+    divisions = doc["axes"][0]["divisions"]
+    assert f"divisions = {divisions}" in (out / "t.blendspace.usda").read_text(encoding="utf-8") or (
+        str(divisions) in (out / "t.blendspace.usda").read_text(encoding="utf-8")
+    )
+    assert (out / "t.png").read_bytes().endswith(b"IEND\xaeB`\x82")
+
+
+def _build(manifest: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    code = main(["build", str(manifest), "--out", str(out)])
+    return code, capsys.readouterr().err
+
+
+def test_a_rebuild_switches_the_whole_set_and_keeps_the_spec_paths(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    manifest = _project(tmp_path / "p", 100)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    first = _outputs(out)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    assert _outputs(out) == first  # byte-identical, and the same generation folder
+    [generation] = (out / ".blendspace" / "t").glob("g-*")
+    _project(tmp_path / "p", 50)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    assert _outputs(out) != first
+    _consistent(out)
+    assert [p.name for p in (out / ".blendspace" / "t").glob("g-*")] != [generation.name]  # old one gone
+    assert all((out / name).is_file() for name in NAMES)
+    # Generated clips are real files (engines import them; exporters resolve their paths).
+    clips = list((out / "clips").iterdir())
+    assert clips and all(p.is_file() and not p.is_symlink() for p in clips)
+
+
+def test_an_old_build_of_real_files_is_replaced_by_the_set(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in NAMES:
+        (out / name).write_text("from an older version of the tool\n", encoding="utf-8")
+    (out / "keep.txt").write_text("a user's file\n", encoding="utf-8")
+    assert _build(_project(tmp_path / "p"), out, capsys)[0] in (0, 1)
+    _consistent(out)
+    assert (out / "keep.txt").read_text(encoding="utf-8") == "a user's file\n"
+
+
+def test_a_library_that_says_yes_to_a_truncated_png_is_caught(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    manifest = _project(tmp_path / "p", 100)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    before = _outputs(out)
+    from blendspace_pipeline import report
+
+    real = report.write_png
+
+    def truncated(doc: object, path: Path) -> None:
+        real(doc, path)  # type: ignore[arg-type]
+        data = path.read_bytes()
+        path.write_bytes(data[: len(data) // 2])  # what a full disk did, with no error reported
+
+    monkeypatch.setattr(report, "write_png", truncated)
+    _project(tmp_path / "p", 50)
+    code, err = _build(manifest, out, capsys)
+    assert code == 2, err
+    assert "cannot write the outputs" in err and "incomplete" in err and "hint:" in err
+    assert _outputs(out) == before
+    assert not list(out.glob(".blendspace-staging-*"))
+
+
+def test_an_injected_enospc_leaves_the_previous_set(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    manifest = _project(tmp_path / "p", 100)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    before = _outputs(out)
+    from blendspace_pipeline import report
+
+    def full(doc: object, path: Path) -> None:
+        path.write_bytes(b"\x89PNG")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(report, "write_png", full)
+    _project(tmp_path / "p", 50)
+    code, err = _build(manifest, out, capsys)
+    assert code == 2 and "No space left on device" in err, err
+    assert _outputs(out) == before
+    assert not list(out.glob(".blendspace-staging-*"))
+
+
+@pytest.mark.parametrize("which", ["staging", "switch"])
+def test_a_failed_rename_leaves_the_previous_set(
+    which: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    manifest = _project(tmp_path / "p", 100)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    before = _outputs(out)
+    real = os.replace
+
+    def failing(source: str | os.PathLike[str], target: str | os.PathLike[str]) -> None:
+        name = Path(target).name
+        if (which == "staging" and name.startswith("g-")) or (which == "switch" and name == "current"):
+            raise OSError(errno.EIO, os.strerror(errno.EIO), str(target))
+        real(source, target)
+
+    monkeypatch.setattr(outputs.os, "replace", failing)
+    _project(tmp_path / "p", 50)
+    code, err = _build(manifest, out, capsys)
+    assert code == 2 and "Input/output error" in err, err
+    # Not one new document among the old ones (generated clips are placed just before the switch).
+    assert _outputs(out, clips_too=which == "staging") == _outputs_of(before, clips_too=which == "staging")
+    _consistent(out)
+    monkeypatch.setattr(outputs.os, "replace", real)
+    assert _build(manifest, out, capsys)[0] in (0, 1)  # and the next build works
+    _consistent(out)
+
+
+SLOW_WRITER = """
+import sys, time
+from pathlib import Path
+from blendspace_pipeline import report
+real = report.write_png
+def slow(doc, path):
+    real(doc, path)
+    Path(sys.argv[3]).write_text("writing")
+    time.sleep(60)
+report.write_png = slow
+from blendspace_pipeline.cli import main
+sys.exit(main(["build", sys.argv[1], "--out", sys.argv[2]]))
+"""
+
+
+def test_kill_9_while_writing_leaves_the_previous_set_and_the_next_build_cleans_up(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    manifest = _project(tmp_path / "p", 100)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    before = _outputs(out)
+    _project(tmp_path / "p", 50)
+    flag = tmp_path / "writing.flag"
+    script = tmp_path / "slow_build.py"
+    script.write_text(SLOW_WRITER, encoding="utf-8")
+    process = subprocess.Popen(
+        [sys.executable, str(script), str(manifest), str(out), str(flag)], env={**os.environ}
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not flag.exists():
+            assert process.poll() is None, "the build ended before it was killed"
+            assert time.monotonic() < deadline, "the build never reached the PNG"
+            time.sleep(0.05)
+        staging = list(out.glob(".blendspace-staging-*"))
+        assert staging and any(staging[0].iterdir())  # killed in the middle of writing
+        assert _outputs(out) == before
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+    assert _outputs(out) == before  # what was published is untouched
+    assert list(out.glob(".blendspace-staging-*"))  # the killed build's leftovers ...
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    assert not list(out.glob(".blendspace-staging-*"))  # ... are removed by the next build
+    assert _outputs(out) != before
+    _consistent(out)
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A 40 MB tmpfs: a real file system that fills up. Needs root and mount permission."""
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    if not hasattr(os, "geteuid") or os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a size-limited tmpfs needs root")
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=40m", "tmpfs", str(folder)], capture_output=True, check=False
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.decode(errors='replace').strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+def test_a_really_full_disk_exits_2_and_keeps_the_previous_set(
+    small_disk: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = small_disk / "out"
+    manifest = _project(tmp_path / "p", 100)
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    before = _outputs(out)
+    # Fill the disk up to a few kB: the JSON may still fit, the PNG and the USD do not.
+    filler = small_disk / "filler"
+    with open(filler, "wb") as stream:
+        try:
+            while True:
+                stream.write(b"\0" * 65536)
+                stream.flush()
+        except OSError:
+            pass
+    _project(tmp_path / "p", 50)
+    code, err = _build(manifest, out, capsys)
+    assert code == 2, err
+    assert "cannot write the outputs" in err and len(err.splitlines()) <= 3, err
+    assert _outputs(out) == before
+    filler.unlink()
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    assert not list(out.glob(".blendspace-staging-*"))
+    _consistent(out)
