@@ -286,3 +286,34 @@ def test_shared_data_measures_without_overrides_or_says_so(relative: str) -> Non
         expected = 0.0254 / 0.45 if relative.startswith("cmu") else 1.0
         assert m.meters_per_unit == pytest.approx(expected, rel=1e-6)
         assert not m.guesses
+
+
+def test_clips_of_one_skeleton_get_one_up_axis(tmp_path: Path) -> None:
+    """Issue 10, "one skeleton, one answer": a take of the rig lying on the floor reads Z up from
+    its own body, but the rig's other clips stand Y up, so it is measured Y up like them (and
+    says why); nothing is left for units-doubt."""
+    from blendspace_pipeline.cli import main
+    from blendspace_pipeline.motion import quaternions as quat
+    from blendspace_pipeline.motion.procedural import GaitSpec, generate
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    lie = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)
+    for name, speed, lying in (("walk", 1.4, False), ("run", 3.5, False), ("crawl", 0.5, True)):
+        clip = generate(GaitSpec(name, speed=speed, duration=2.0))
+        if lying:
+            rotations, translations = clip.rotations.copy(), clip.translations.copy()
+            rotations[:, 0] = quat.multiply(np.broadcast_to(lie, rotations[:, 0].shape), rotations[:, 0])
+            translations[:, 0] = quat.rotate(np.broadcast_to(lie, rotations[:, 0].shape), translations[:, 0])
+            clip = type(clip)(clip.name, clip.source, clip.skeleton, rotations, translations, clip.fps)
+        write_bvh_clip(clip, folder / f"{name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: rig\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix", "--format", "json"]) in (0, 1)
+    doc = json.loads((out / "rig.blendspace.json").read_text(encoding="utf-8"))
+    by_name = {s["name"]: s for s in doc["samples"]}
+    assert {s["clip"]["up_axis"] for s in by_name.values()} == {"y"}
+    assert any("one rig, one answer" in note for note in by_name["crawl"]["clip"]["notes"])
+    assert not [d for d in doc["diagnostics"] if d["rule"] == "units-doubt"]

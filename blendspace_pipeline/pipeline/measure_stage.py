@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 from blendspace_pipeline.errors import InputError, ManifestError
@@ -79,6 +80,7 @@ def measure_files(
             results.append(_measure_job(job))
             if progress:
                 progress(done, len(job_list), job[0].name)
+    results = _one_answer_per_skeleton(job_list, results)
     clips: list[MeasuredClip] = []
     for resolved, result in zip(files, results, strict=True):
         if isinstance(result, InputError):
@@ -86,6 +88,69 @@ def measure_files(
         clips += _named(resolved, result)
     _reject_duplicate_names(loaded, clips)
     return clips
+
+
+Job = tuple[Path, RigSettings, TimeRange]
+Result = list[tuple[str, Measurement]] | InputError
+
+
+def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Result]:
+    """Clips of one skeleton (same joint names, hierarchy and rest offsets: one rig, one export)
+    get one up axis and one unit.
+
+    Where detection read them differently, the reading most of the confident clips share (else
+    most of all clips) wins and the others are measured again with it, saying so in their notes.
+    Only detected values are pooled: clips whose entry sets `skeleton.units` / `skeleton.up` keep
+    them, and a set that still disagrees is the `units-doubt` error naming the odd ones.
+    """
+    groups: dict[str, list[tuple[int, int]]] = {}
+    for index, (job, result) in enumerate(zip(jobs, results, strict=True)):
+        settings = job[1]
+        if isinstance(result, InputError) or settings.units != "auto" or settings.up != "auto":
+            continue
+        for position, (_, measurement) in enumerate(result):
+            if measurement.skeleton_key:
+                groups.setdefault(measurement.skeleton_key, []).append((index, position))
+    redo: dict[int, tuple[str, float]] = {}
+    for members in groups.values():
+        readings = [_reading(results, member) for member in members]
+        if len(set(readings)) < 2:
+            continue
+        confident = [
+            reading
+            for reading, member in zip(readings, members, strict=True)
+            if not _guessed(results, member)
+        ]
+        pool = confident or readings
+        consensus = max(sorted(set(pool)), key=pool.count)
+        for reading, (index, _) in zip(readings, members, strict=True):
+            if reading != consensus:
+                redo[index] = consensus
+    if not redo:
+        return results
+    pooled = list(results)
+    for index, (up, units) in redo.items():
+        path, settings, time_range = jobs[index]
+        agreed = replace(settings, up=up, units=units)
+        again = _measure_job((path, agreed, time_range))
+        if isinstance(again, InputError):
+            continue  # the reading of its own stands; units-doubt names it
+        note = (
+            f"up axis {up.upper()} and {units:.4g} m per unit taken from the other clips of the same "
+            "skeleton (one rig, one answer)"
+        )
+        pooled[index] = [(name, replace(m, notes=[*m.notes, note])) for name, m in again]
+    return pooled
+
+
+def _reading(results: list[Result], member: tuple[int, int]) -> tuple[str, float]:
+    measurement = results[member[0]][member[1]][1]  # type: ignore[index]
+    return measurement.up_axis, round(measurement.meters_per_unit, 9)
+
+
+def _guessed(results: list[Result], member: tuple[int, int]) -> bool:
+    measurement = results[member[0]][member[1]][1]  # type: ignore[index]
+    return any(g.what in ("up axis", "units") for g in measurement.guesses)
 
 
 def _at_entry(loaded: LoadedManifest, resolved: ResolvedClipFile, error: InputError) -> InputError:
