@@ -588,3 +588,33 @@ def test_hostile_input_exits_2_with_location_hint_and_writes_nothing(
 def test_the_corpus_is_large() -> None:
     # Kept honest: the issue's 132 hand-made inputs, each tried with check and build.
     assert len(ALL) >= 130, len(ALL)
+
+
+def test_a_gltf_buffer_elsewhere_in_the_project_is_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """References are confined to the project, not to the clip's own folder: a studio layout with
+    buffers in a sibling folder (`../buffers/walk.bin`) reads; one that leaves the project does not."""
+    root = tmp_path / "project"
+    (root / "clips").mkdir(parents=True)
+    (root / "buffers").mkdir()
+    document = _gltf(root)
+    buffer = document["buffers"][0]  # type: ignore[index]
+    if str(buffer.get("uri", "")).startswith("data:"):
+        import base64
+
+        data = base64.b64decode(buffer["uri"].split(",", 1)[1])
+    else:
+        data = (root / "clips" / buffer["uri"]).read_bytes()
+    (root / "buffers" / "walk.bin").write_bytes(data)
+    buffer["uri"] = "../buffers/walk.bin"
+    (root / "clips" / "g.gltf").write_text(json.dumps(document), encoding="utf-8")
+    manifest = root / "manifest.yaml"
+    manifest.write_text(HEADER + "clips:\n  - path: clips/g.gltf\n", encoding="utf-8")
+    assert main(["check", str(manifest)]) in (0, 1)
+    assert "outside the project" not in capsys.readouterr().err
+    # The same layout with the manifest inside clips/: the buffer now lies outside its project.
+    inner = root / "clips" / "manifest.yaml"
+    inner.write_text(HEADER + "clips:\n  - path: g.gltf\n", encoding="utf-8")
+    assert main(["check", str(inner)]) == 2
+    assert "outside the project" in capsys.readouterr().err

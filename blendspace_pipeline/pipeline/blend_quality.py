@@ -10,6 +10,7 @@ the blend changes smoothly inside a triangle, and it keeps a build's cost to a s
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
@@ -47,12 +48,12 @@ def _stats(name: str, values: FloatArray) -> dict[str, float]:
     return {f"{name}_max": round(float(finite.max()), 5), f"{name}_mean": round(float(finite.mean()), 5)}
 
 
-def _source_clip(sample: Sample, generated: Mapping[str, Clip]) -> Clip | None:
+def _source_clip(sample: Sample, generated: Mapping[str, Clip], project: Path | None) -> Clip | None:
     if sample.generated:
         return generated.get(sample.name)
     animation = str(sample.clip.extra.get("animation", sample.name))
     try:
-        clips = read_clips(sample.clip.source)
+        clips = read_clips(sample.clip.source, project=project)
     except (InputError, OSError):
         return None
     for clip in clips:
@@ -80,7 +81,7 @@ class PreparedSamples:
         m = sample.clip.measurement
         if m.contacts is None:
             return None
-        clip = _source_clip(sample, self.generated)
+        clip = _source_clip(sample, self.generated, self.space.manifest.directory)
         if clip is None or clip.frame_count < 4:
             return None
         clip = without_rest_frame(clip, self.settings)

@@ -352,7 +352,7 @@ class _Fixer:
         if name not in self.clips:
             measured = self.sources[name]
             animation = str(measured.extra.get("animation", name))
-            clips = read_clips(measured.source)
+            clips = read_clips(measured.source, project=self.original.manifest.directory)
             clip = next((c for c in clips if c.name == animation), clips[0])
             self.clips[name] = trim(clip, measured.time_range)
         return self.clips[name]

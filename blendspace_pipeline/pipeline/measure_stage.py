@@ -18,6 +18,10 @@ from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.limits import check_regular
 from blendspace_pipeline.space.model import MeasuredClip
 
+# One file to measure: its path, rig settings, `range:` and the project folder (see measure_file).
+Job = tuple[Path, RigSettings, TimeRange, Path | None]
+Result = list[tuple[str, Measurement]] | InputError
+
 
 def rig_settings(settings: SkeletonSettings) -> RigSettings:
     units = settings.units
@@ -41,21 +45,26 @@ def entry_settings(top: SkeletonSettings, entry: ClipEntry) -> SkeletonSettings:
     )
 
 
-def measure_file(path: Path, settings: RigSettings, time_range: TimeRange) -> list[tuple[str, Measurement]]:
-    """Measurements of every animation in ``path``, from the cache when the file is unchanged."""
+def measure_file(
+    path: Path, settings: RigSettings, time_range: TimeRange, project: Path | None = None
+) -> list[tuple[str, Measurement]]:
+    """Measurements of every animation in ``path``, from the cache when the file is unchanged.
+
+    ``project`` (the manifest's folder) is where the clip's references (glTF buffers, USD layers)
+    may lie besides the clip's own folder."""
     check_regular(path, what="clip file")  # hashing a FIFO for the cache key would hang
     key = cache.cache_key(path, settings.cache_key(), time_range)
     cached = cache.load(key)
     if cached is not None:
         return cached
-    measured = [(clip.name, measure(clip, settings, time_range)) for clip in read_clips(path)]
+    measured = [
+        (clip.name, measure(clip, settings, time_range)) for clip in read_clips(path, project=project)
+    ]
     cache.store(key, measured)
     return measured
 
 
-def _measure_job(
-    job: tuple[Path, RigSettings, TimeRange],
-) -> list[tuple[str, Measurement]] | InputError:
+def _measure_job(job: Job) -> list[tuple[str, Measurement]] | InputError:
     """Worker entry: input errors travel back as values (their fields survive pickling)."""
     try:
         return measure_file(*job)
@@ -67,7 +76,9 @@ def measure_files(
     loaded: LoadedManifest, files: list[ResolvedClipFile], *, jobs: int = 1, progress: Progress | None = None
 ) -> list[MeasuredClip]:
     top = loaded.model.skeleton
-    job_list = [(f.path, rig_settings(entry_settings(top, f.entry)), _range(f.entry)) for f in files]
+    job_list: list[Job] = [
+        (f.path, rig_settings(entry_settings(top, f.entry)), _range(f.entry), loaded.directory) for f in files
+    ]
     results: list[list[tuple[str, Measurement]] | InputError] = []
     if jobs > 1 and len(job_list) > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -88,10 +99,6 @@ def measure_files(
         clips += _named(resolved, result)
     _reject_duplicate_names(loaded, clips)
     return clips
-
-
-Job = tuple[Path, RigSettings, TimeRange]
-Result = list[tuple[str, Measurement]] | InputError
 
 
 def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Result]:
@@ -130,9 +137,9 @@ def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Res
         return results
     pooled = list(results)
     for index, (up, units) in redo.items():
-        path, settings, time_range = jobs[index]
+        path, settings, time_range, project = jobs[index]
         agreed = replace(settings, up=up, units=units)
-        again = _measure_job((path, agreed, time_range))
+        again = _measure_job((path, agreed, time_range, project))
         if isinstance(again, InputError):
             continue  # the reading of its own stands; units-doubt names it
         note = (

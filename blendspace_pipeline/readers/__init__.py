@@ -62,11 +62,11 @@ def adapter_for(path: Path) -> ModuleType:
     )
 
 
-def read_clips(path: Path) -> list[Clip]:
+def read_clips(path: Path, *, project: Path | None = None) -> list[Clip]:
     """All animations in ``path`` as validated clips, within the limits of `limits`.
 
     Files the clip refers to (glTF buffers, USD layers) are read only inside the clip's own folder
-    tree (`limits.confined`).
+    tree or the ``project`` folder (the manifest's; `limits.confined`).
     """
     adapter = adapter_for(path)
     try:
@@ -76,7 +76,7 @@ def read_clips(path: Path) -> list[Clip]:
     if not exists:
         raise ClipReadError("clip file not found", path=path, hint="check the path in the manifest")
     check_regular(path, what="clip file")
-    roots = allowed_roots(path)
+    roots = allowed_roots(path, project)
     token = REFERENCE_ROOTS.set(roots)
     try:
         clips: list[Clip] = adapter.read(path)

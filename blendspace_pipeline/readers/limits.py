@@ -6,8 +6,8 @@ crash it, hang it or make it read outside the project:
 - files are opened without blocking and must be *regular* files (a FIFO would hang the read, a
   device such as /dev/zero would fill the memory) no larger than `MAX_FILE_BYTES`;
 - a file a clip refers to (a glTF buffer, a USD sublayer or reference) must resolve inside the
-  clip's own folder tree (symlinks resolved); `..` and absolute references that leave it are
-  refused (`allowed_roots` takes an extra root for callers that know the project folder);
+  clip's own folder tree or the manifest's project folder (symlinks resolved); `..` and absolute
+  references that leave both are refused;
 - a clip may not exceed `max_frames()` frames, `MAX_JOINTS` joints or a sane frame rate, and its
   values must be of a size a body can have (a 1e308 offset overflows forward kinematics).
 
