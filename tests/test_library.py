@@ -62,8 +62,10 @@ def test_index_and_suggest_fill_the_placeholders(tmp_path: Path, capsys: pytest.
     result = json.loads(capsys.readouterr().out)
     mirror = next(p for p in result["placeholders"] if p["rule"] == "missing-opposite")
     assert mirror["candidates"][0]["name"] == "take_walk_right" and mirror["candidates"][0]["fills"]
-    corner = next(p for p in result["placeholders"] if p["position"] == [180.0, 6.0])
-    assert not any(c["fills"] for c in corner["candidates"])  # the library has nothing up there
+    # The three library takes cannot fill every placeholder (e.g. the coverage ones): those are
+    # listed with their nearest clips, none marked as filling.
+    unfilled = [p for p in result["placeholders"] if not any(c["fills"] for c in p["candidates"])]
+    assert unfilled and all(p["rule"] != "missing-opposite" for p in unfilled)
     assert "take_walk_right.bvh" in result["patch"] and "take_run_right" not in result["patch"]
 
     # Apply the patch: the finding and its placeholder go away.
