@@ -118,7 +118,8 @@ def _crash(monkeypatch: pytest.MonkeyPatch) -> None:
     def broken(*args: object, **kwargs: object) -> object:
         raise RuntimeError("a bug\nwith a second line\n::error::forged")
 
-    monkeypatch.setattr("blendspace_pipeline.commands.check.analyse", broken)
+    # `check` imports the analysis when it runs (lazily), so the bug is planted at its source.
+    monkeypatch.setattr("blendspace_pipeline.pipeline.analysis.analyse", broken)
 
 
 def test_the_crash_log_is_private_and_one_line_is_printed(
