@@ -200,6 +200,61 @@ def test_eval_says_what_its_rates_deliver(
     assert turn < 0.85 * 44.5  # the rates cost a sixth of the turn or more
 
 
+def test_eval_json_and_sync_modes_carry_the_delivered_motion(
+    planted_build: tuple[BlendSpaceDocument, dict[str, object]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--format json` carries what the text line says; `--sync` changes the rates (and so what is
+    delivered); each mode's delivered turn agrees with playing the clips at its rates."""
+    _, data = planted_build
+    path = str(data["out"] / "planted.blendspace.json")  # type: ignore[operator]
+    specs = {s.name: s for s in SAMPLE_SET}
+    turns = {}
+    for sync in SYNC_MODES:
+        capsys.readouterr()
+        assert main(["eval", path, "--at", "x=44.5,y=4.0", "--sync", sync, "--format", "json"]) == 0
+        result = json.loads(capsys.readouterr().out)
+        got = result["delivered"]
+        assert got["sync"] == sync
+        entries = result["weights"]
+        assert set(got["playback_rates"]) == {e["clip"] for e in entries}
+        if sync == "normalized":  # the rates eval lists
+            assert got["playback_rates"] == {e["clip"]: e["playback_rate"] for e in entries}
+        if sync == "none":
+            assert set(got["playback_rates"].values()) == {1.0}
+        rates = [got["playback_rates"][e["clip"]] for e in entries]
+        played = play(
+            [_prepared(specs[e["clip"]]) for e in entries],
+            [e["weight"] for e in entries],
+            rates,
+            SETTINGS,
+            seconds=12.0,
+        )
+        assert got["turn_rate"] == pytest.approx(played.turn_rate, rel=0.1)
+        assert got["forward_speed"] == pytest.approx(played.forward_speed, rel=0.1)
+        [turn_axis] = [a for a in got["axes"] if a["feature"] == "turn_rate"]
+        assert turn_axis == {
+            "feature": "turn_rate",
+            "unit": "deg/s",
+            "delivered": got["turn_rate"],
+            "asked": 44.5,
+        }
+        # The text form says the same numbers.
+        assert main(["eval", path, "--at", "x=44.5,y=4.0", "--sync", sync]) == 0
+        line = next(
+            t for t in capsys.readouterr().out.splitlines() if t.startswith("delivered at these rates")
+        )
+        assert f"turn {got['turn_rate']:.3g} deg/s" in line
+        assert (f"(sync {sync})" in line) == (sync != "normalized")
+        turns[sync] = got["turn_rate"]
+    # At rate 1 the blend turns as placed (about what was asked); syncing slows the turning clip.
+    assert turns["none"] == pytest.approx(44.5, rel=0.1)
+    assert turns["normalized"] < 0.85 * turns["none"]
+    assert len(set(turns.values())) >= 2, turns
+    capsys.readouterr()
+    assert main(["eval", path, "--at", "x=44.5,y=4.0", "--sync", "phase"]) == 2
+    assert "--sync" in capsys.readouterr().err
+
+
 CADENCES = [
     GaitSpec("walk", speed=1.4, duration=2.0),  # 1.4 m strides
     GaitSpec("run", speed=4.0, duration=1.6, stride_length=2.6),
