@@ -5,7 +5,10 @@ row) in one batch (`evaluate_many`): one line per query, or a JSON array with `-
 
 Prints what the blend graph (main space, beta and style layers) blends at the query: clips,
 weights summing to 1, the layer each clip comes from and the playback rate that keeps the gait
-cycles aligned. `--format json` gives the same as `Evaluation.to_json()`.
+cycles aligned, then what those rates deliver (forward, lateral, turn) next to what was asked;
+`--sync none|markers` gives the delivered motion under that sync mode instead of the listed
+(normalized) rates. `--format json` gives `Evaluation.to_json()` plus `delivered` (null for blends
+involving layers).
 """
 
 from __future__ import annotations
