@@ -67,7 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--sync",
         choices=SYNC_MODES,
         default=DEFAULT_SYNC,
-        help="how the engine keeps the clips in step, for the delivered motion: normalized (the rates "
+        help="how the engine keeps the clips in step, for the delivered motion of an --at query: "
+        "normalized (the rates "
         "listed, what the exports set up), markers (the heaviest clip at 1, the others match its "
         f"stride) or none (every clip at 1) (default: {DEFAULT_SYNC})",
     )
