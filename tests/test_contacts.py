@@ -163,6 +163,23 @@ def test_build_writes_contacts_to_json_and_usd(tmp_path: Path) -> None:
             assert written == pytest.approx(np.array(spans))
         for foot, phase in sample["clip"]["plant_phases"].items():
             assert phase == pytest.approx(truth.plant_phase[foot], abs=0.06)
+        # Sync markers: the foot-down times of the planted truth (contacts under way at frame 0
+        # are not events), sorted by time, in the JSON and in the USD asset.
+        expected = sorted(
+            (start, name)
+            for foot, name in (("left", "LeftFootDown"), ("right", "RightFootDown"))
+            for start, _ in truth.contacts[foot]
+            if start > 0.0
+        )
+        markers = sample["markers"]
+        assert [m["name"] for m in markers] == [name for _, name in expected], (markers, expected)
+        assert [m["time"] for m in markers] == pytest.approx([t for t, _ in expected], abs=2.0 / spec.fps)
+        assert [m["time"] for m in markers] == sorted(m["time"] for m in markers)
+        assert len(markers) >= 2
+        assert list(prim.GetAttribute("blendspace:markers:names").Get()) == [m["name"] for m in markers]
+        assert list(prim.GetAttribute("blendspace:markers:times").Get()) == pytest.approx(
+            [m["time"] for m in markers]
+        )
     report = (out / "feet.report.html").read_text()
     assert report.count('class="contacts-strip"') == len(specs)
 

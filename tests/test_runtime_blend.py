@@ -198,3 +198,118 @@ def test_eval_says_what_its_rates_deliver(
     )
     assert turn == pytest.approx(played.turn_rate, rel=0.1)
     assert turn < 0.85 * 44.5  # the rates cost a sixth of the turn or more
+
+
+def test_eval_json_and_sync_modes_carry_the_delivered_motion(
+    planted_build: tuple[BlendSpaceDocument, dict[str, object]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--format json` carries what the text line says; `--sync` changes the rates (and so what is
+    delivered); each mode's delivered turn agrees with playing the clips at its rates."""
+    _, data = planted_build
+    path = str(data["out"] / "planted.blendspace.json")  # type: ignore[operator]
+    specs = {s.name: s for s in SAMPLE_SET}
+    turns = {}
+    for sync in SYNC_MODES:
+        capsys.readouterr()
+        assert main(["eval", path, "--at", "x=44.5,y=4.0", "--sync", sync, "--format", "json"]) == 0
+        result = json.loads(capsys.readouterr().out)
+        got = result["delivered"]
+        assert got["sync"] == sync
+        entries = result["weights"]
+        assert set(got["playback_rates"]) == {e["clip"] for e in entries}
+        if sync == "normalized":  # the rates eval lists
+            assert got["playback_rates"] == {e["clip"]: e["playback_rate"] for e in entries}
+        if sync == "none":
+            assert set(got["playback_rates"].values()) == {1.0}
+        rates = [got["playback_rates"][e["clip"]] for e in entries]
+        played = play(
+            [_prepared(specs[e["clip"]]) for e in entries],
+            [e["weight"] for e in entries],
+            rates,
+            SETTINGS,
+            seconds=12.0,
+        )
+        assert got["turn_rate"] == pytest.approx(played.turn_rate, rel=0.1)
+        assert got["forward_speed"] == pytest.approx(played.forward_speed, rel=0.1)
+        [turn_axis] = [a for a in got["axes"] if a["feature"] == "turn_rate"]
+        assert turn_axis == {
+            "feature": "turn_rate",
+            "unit": "deg/s",
+            "delivered": got["turn_rate"],
+            "asked": 44.5,
+        }
+        # The text form says the same numbers.
+        assert main(["eval", path, "--at", "x=44.5,y=4.0", "--sync", sync]) == 0
+        line = next(
+            t for t in capsys.readouterr().out.splitlines() if t.startswith("delivered at these rates")
+        )
+        assert f"turn {got['turn_rate']:.3g} deg/s" in line
+        assert (f"(sync {sync})" in line) == (sync != "normalized")
+        turns[sync] = got["turn_rate"]
+    # At rate 1 the blend turns as placed (about what was asked); syncing slows the turning clip.
+    assert turns["none"] == pytest.approx(44.5, rel=0.1)
+    assert turns["normalized"] < 0.85 * turns["none"]
+    assert len(set(turns.values())) >= 2, turns
+    capsys.readouterr()
+    assert main(["eval", path, "--at", "x=44.5,y=4.0", "--sync", "phase"]) == 2
+    assert "--sync" in capsys.readouterr().err
+
+
+CADENCES = [
+    GaitSpec("walk", speed=1.4, duration=2.0),  # 1.4 m strides
+    GaitSpec("run", speed=4.0, duration=1.6, stride_length=2.6),
+    GaitSpec("walk_turn", speed=1.4, turn_rate=60.0, duration=3.0),
+    GaitSpec("run_turn", speed=3.0, turn_rate=-60.0, duration=1.5, stride_length=1.5),
+]
+
+
+def _cadence_project(folder: Path, blend: str, stem: str) -> Path:
+    for spec in CADENCES:
+        path = folder / "clips" / f"{spec.name}.usda"
+        if not path.exists():
+            write_usd_clip(generate_planted(spec), path, meters_per_unit=1.0, up_axis="y")
+    manifest = folder / f"{stem}.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: cadence\nclips:\n  - path: clips/*.usda\n"
+        "axes:\n  x: {feature: turn_rate, min: -90, max: 90, divisions: 18}\n"
+        "  y: {feature: speed, min: 0, max: 5, divisions: 50}\n"
+        f"output: {{formats: [json]}}\n{blend}"
+    )
+    return manifest
+
+
+def test_the_manifest_sync_mode_reaches_the_blend_quality_maps(tmp_path: Path) -> None:
+    """Clips of different cadences: each sync mode plays them at different rates, so the build's
+    maps differ, and each equals the model run in that mode on the written document."""
+    maxima = {}
+    for sync in SYNC_MODES:
+        manifest = _cadence_project(tmp_path, f"blend:\n  sync: {sync}\n", sync)
+        out = tmp_path / f"out_{sync}"
+        assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+        text = (out / "cadence.blendspace.json").read_text()
+        quality = json.loads(text)["blend_quality"]
+        assert quality["sync"] == sync
+        model = runtime_grid(BlendSpaceDocument.model_validate_json(text), sync)  # type: ignore[arg-type]
+        assert quality["summary"]["trajectory_error_max"] == pytest.approx(model.max_distance, abs=1e-5)
+        maxima[sync] = (quality["summary"]["trajectory_error_mean"], quality["summary"]["drift_max"])
+    assert len(set(maxima.values())) == 3, maxima
+    # Without `blend:` the build plays as the exports set it up: normalized.
+    default = tmp_path / "out_default"
+    assert main(
+        ["build", str(_cadence_project(tmp_path, "", "default")), "--out", str(default), "--no-fix"]
+    ) in (0, 1)
+    quality = json.loads((default / "cadence.blendspace.json").read_text())["blend_quality"]
+    assert quality["sync"] == "normalized"
+    assert quality["summary"]["trajectory_error_mean"] == maxima["normalized"][0]
+
+
+def test_a_bad_sync_mode_is_a_manifest_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    manifest = _cadence_project(tmp_path, "blend:\n  sync: phase\n", "bad")
+    out = tmp_path / "out"
+    capsys.readouterr()
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) == 2
+    err = capsys.readouterr().err
+    line = manifest.read_text().splitlines().index("  sync: phase") + 1
+    assert f"{manifest.name}:{line}:" in err and "sync" in err, err
+    assert "Traceback" not in err
+    assert not (out / "cadence.blendspace.json").exists()

@@ -5,7 +5,10 @@ row) in one batch (`evaluate_many`): one line per query, or a JSON array with `-
 
 Prints what the blend graph (main space, beta and style layers) blends at the query: clips,
 weights summing to 1, the layer each clip comes from and the playback rate that keeps the gait
-cycles aligned. `--format json` gives the same as `Evaluation.to_json()`.
+cycles aligned, then what those rates deliver (forward, lateral, turn) next to what was asked;
+`--sync none|markers` gives the delivered motion under that sync mode instead of the listed
+(normalized) rates. `--format json` gives `Evaluation.to_json()` plus `delivered` (null for blends
+involving layers).
 """
 
 from __future__ import annotations
@@ -15,10 +18,12 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
+from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC, SYNC_MODES, SyncMode, playback_rates
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.evaluate import (
     DEFAULT_CULL,
@@ -28,7 +33,7 @@ from blendspace_pipeline.space.evaluate import (
     evaluate_many,
 )
 from blendspace_pipeline.space.layers_doc import read_document
-from blendspace_pipeline.space.runtime_blend import delivered_at_rates
+from blendspace_pipeline.space.runtime_blend import delivered_at_rates, sample_period
 
 HELP = "blend weights (and playback rates) the blend graph gives at one query point"
 
@@ -59,6 +64,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--joint", metavar="NAME", help="apply the layers' per-joint masks for this joint")
     parser.add_argument(
+        "--sync",
+        choices=SYNC_MODES,
+        default=DEFAULT_SYNC,
+        help="how the engine keeps the clips in step, for the delivered motion of an --at query: "
+        "normalized (the rates "
+        "listed, what the exports set up), markers (the heaviest clip at 1, the others match its "
+        f"stride) or none (every clip at 1) (default: {DEFAULT_SYNC})",
+    )
+    parser.add_argument(
         "--format", choices=("text", "json"), default="text", help="output format (default: text)"
     )
 
@@ -75,9 +89,13 @@ def run(args: argparse.Namespace) -> int:
         if error.path is None:
             error.path = args.blendspace
         raise
-    sys.stdout.write(
-        json.dumps(result.to_json(), indent=2) + "\n" if args.format == "json" else render(doc, result)
-    )
+    sync: SyncMode = args.sync
+    if args.format == "json":
+        # `Evaluation.to_json` stays what scripting gets; the command adds the delivered motion.
+        data = {**result.to_json(), "delivered": delivered_motion(doc, result, sync)}
+        sys.stdout.write(json.dumps(data, indent=2) + "\n")
+    else:
+        sys.stdout.write(render(doc, result, sync))
     return EXIT_OK
 
 
@@ -197,7 +215,7 @@ def _axis_listing(doc: BlendSpaceDocument) -> str:
     return ", ".join(f"{axis.name} = {axis.feature}" for axis in doc.axes)
 
 
-def render(doc: BlendSpaceDocument, result: Evaluation) -> str:
+def render(doc: BlendSpaceDocument, result: Evaluation, sync: SyncMode = DEFAULT_SYNC) -> str:
     """The text form: one line per clip, then where the query went and how each layer took part."""
     x_axis, y_axis = doc.axes
     lines = [
@@ -222,36 +240,61 @@ def render(doc: BlendSpaceDocument, result: Evaluation) -> str:
     elif result.outside_hull:
         lines.append("outside the hull of a beta layer: it evaluates at its nearest hull point")
     lines += [_layer_line(report) for report in result.layers]
-    delivered = _delivered_line(doc, result)
-    if delivered:
-        lines.append(delivered)
+    delivered = delivered_motion(doc, result, sync)
+    if delivered is not None:
+        lines.append(_delivered_line(delivered))
     return "\n".join(lines) + "\n"
 
 
-def _delivered_line(doc: BlendSpaceDocument, result: Evaluation) -> str | None:
-    """What the character really does when the clips play at these rates (a clip played slower
-    moves and turns slower), next to what was asked; main-space blends only."""
+def delivered_motion(
+    doc: BlendSpaceDocument, result: Evaluation, sync: SyncMode = DEFAULT_SYNC
+) -> dict[str, object] | None:
+    """What the character really does when the clips play at the rates of ``sync`` (a clip played
+    slower moves and turns slower), next to what was asked; main-space blends only, else None.
+
+    ``normalized`` uses the rates `evaluate` lists (stride-normalised, what the exports set up);
+    ``markers`` and ``none`` the rates `motion.blend_model.playback_rates` gives for that mode.
+    """
     by_name = {s.name: s for s in doc.samples}
     entries = result.weights
     if not entries or any(
         e.layer is not None or e.playback_rate is None or e.clip not in by_name for e in entries
     ):
         return None
-    motion = delivered_at_rates(
-        [by_name[e.clip] for e in entries],
-        [e.weight for e in entries],
-        [float(e.playback_rate or 1.0) for e in entries],
-    )
+    samples = [by_name[e.clip] for e in entries]
+    weights = [e.weight for e in entries]
+    if sync == "normalized":
+        rates = [float(e.playback_rate or 1.0) for e in entries]
+    else:
+        durations = [s.features.get("duration", 1.0) for s in samples]
+        rates = playback_rates(weights, durations, [sample_period(s) for s in samples], sync)
+    motion = delivered_at_rates(samples, weights, rates)
     if motion is None:
         return None
     asked = []
     for axis, value in zip(doc.axes, result.hull_point or result.query, strict=True):
         got = motion.feature(axis.feature)
         if got is not None:
-            asked.append(f"{axis.feature} {got:.3g} {axis.unit} for {value:g} asked")
+            asked.append({"feature": axis.feature, "unit": axis.unit, "delivered": got, "asked": value})
+    return {
+        "sync": sync,
+        "playback_rates": {e.clip: rate for e, rate in zip(entries, rates, strict=True)},
+        "forward_speed": motion.forward,
+        "lateral_speed": motion.lateral,
+        "turn_rate": motion.turn_rate,
+        "axes": asked,
+    }
+
+
+def _delivered_line(delivered: dict[str, Any]) -> str:
+    asked = [
+        f"{a['feature']} {a['delivered']:.3g} {a['unit']} for {a['asked']:g} asked" for a in delivered["axes"]
+    ]
+    sync = "" if delivered["sync"] == DEFAULT_SYNC else f" (sync {delivered['sync']})"
     return (
-        f"delivered at these rates: forward {motion.forward:.3g} m/s, lateral {motion.lateral:.3g} m/s, "
-        f"turn {motion.turn_rate:.3g} deg/s" + (f" ({'; '.join(asked)})" if asked else "")
+        f"delivered at these rates{sync}: forward {delivered['forward_speed']:.3g} m/s, "
+        f"lateral {delivered['lateral_speed']:.3g} m/s, turn {delivered['turn_rate']:.3g} deg/s"
+        + (f" ({'; '.join(asked)})" if asked else "")
     )
 
 

@@ -349,6 +349,18 @@ class OutputSettings(_Model):
     )
 
 
+class BlendSettings(_Model):
+    """How the engine plays the blend, for the build's blend-quality maps."""
+
+    sync: Literal["none", "normalized", "markers"] = Field(
+        default="normalized",
+        description="How blended clips keep in step: `normalized` (lengths stretched to the weighted "
+        "mean, what Unity blend trees, Unreal blend spaces and Godot do and what our exports set up), "
+        "`markers` (the heaviest clip plays at 1, the others match its stride, as Unreal's sync "
+        "markers do) or `none` (every clip at rate 1). The `blend_quality` maps play the blend so.",
+    )
+
+
 class Manifest(_Model):
     """A blendspace-pipeline manifest: the clips of one blend space and how to build it."""
 
@@ -367,6 +379,9 @@ class Manifest(_Model):
     )
     layers: list[Layer] = Field(default_factory=list, description="Beta and style layers (more dimensions).")
     output: OutputSettings = Field(default_factory=OutputSettings, description="Output folder and formats.")
+    blend: BlendSettings = Field(
+        default_factory=BlendSettings, description="How the engine plays the blend (sync mode)."
+    )
 
     @field_validator("name")
     @classmethod

@@ -182,7 +182,12 @@ def _write_outputs(
                 sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}{source_suffix(sub)}"
     document = to_document(space, out_dir)
     # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
-    document.blend_quality = blend_quality(space, document, {n: g.clip for n, g in fixes.generated.items()})
+    document.blend_quality = blend_quality(
+        space,
+        document,
+        {n: g.clip for n, g in fixes.generated.items()},
+        sync=space.manifest.model.blend.sync,
+    )
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
     try:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.diagnostics import Diagnostic
+from blendspace_pipeline.motion.contacts import FootContacts, sync_markers
 from blendspace_pipeline.motion.measure import FEATURE_UNITS
 from blendspace_pipeline.space.document import (
     AxisDoc,
@@ -15,6 +16,7 @@ from blendspace_pipeline.space.document import (
     ClipInfoDoc,
     DiagnosticDoc,
     LocationDoc,
+    MarkerDoc,
     PlaceholderDoc,
     SampleDoc,
 )
@@ -55,8 +57,17 @@ def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
         snapping_error=[_r(e) for e in sample.snapping_error],
         manual_position=[float(v) for v in entry.position] if entry.position is not None else None,
         clip=_clip_info(sample.clip),
-        contacts=sample.clip.measurement.contacts,
+        contacts=m.contacts,
+        markers=_markers(m.contacts, m.features["duration"]),
     )
+
+
+def _markers(contacts: dict[str, list[list[float]]] | None, duration: float) -> list[MarkerDoc] | None:
+    """Foot-down events of the measured contacts, the same seconds as `contacts`."""
+    if contacts is None:
+        return None
+    events = sync_markers(FootContacts.from_json(contacts, duration))
+    return [MarkerDoc(name=name, time=_r(time)) for time, name in events]  # type: ignore[arg-type]
 
 
 def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:

@@ -61,6 +61,11 @@ class ClipInfoDoc(_Strict):
     )
 
 
+class MarkerDoc(_Strict):
+    name: Literal["LeftFootDown", "RightFootDown"] = Field(description="Which foot comes down.")
+    time: float = Field(description="When, in seconds of the used range.")
+
+
 class SampleDoc(_Strict):
     name: str = Field(description="Clip name, unique in the blend space.")
     source: str = Field(description="Path of the clip file, relative to the JSON file when possible.")
@@ -82,6 +87,11 @@ class SampleDoc(_Strict):
         default=None,
         description="Foot contacts per foot (`left`, `right`): [start, end] seconds of the used range "
         "during which the foot stands on the ground; absent for rigs without recognisable feet.",
+    )
+    markers: list[MarkerDoc] | None = Field(
+        default=None,
+        description="Sync markers (Unreal's sync markers): every foot-down event of `contacts`, sorted by "
+        "time; a contact already under way at the first frame is not one. Absent without contacts.",
     )
 
 

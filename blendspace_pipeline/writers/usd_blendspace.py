@@ -93,6 +93,10 @@ def _write_samples(parent: Sdf.PrimSpec, sample_docs: Sequence[SampleDoc]) -> No
             # Per foot, [start, end] seconds of the used range, as pairs (spec.md's `contacts`).
             for foot, spans in sorted(sample.contacts.items()):
                 _attr(prim, f"contacts:{foot}", Sdf.ValueTypeNames.Double2Array, [tuple(s) for s in spans])
+        if sample.markers is not None:
+            # Sync markers as two parallel arrays (name, seconds of the used range), sorted by time.
+            _attr(prim, "markers:names", Sdf.ValueTypeNames.TokenArray, [m.name for m in sample.markers])
+            _attr(prim, "markers:times", Sdf.ValueTypeNames.DoubleArray, [m.time for m in sample.markers])
         for feature, value in sorted(sample.features.items()):
             _attr(prim, f"features:{feature}", Sdf.ValueTypeNames.Double, value)
     # Triangle indices refer to samples in this order, whatever order a tool lists children in.
