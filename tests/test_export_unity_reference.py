@@ -115,7 +115,16 @@ def controller_structure(text: str) -> dict[str, Any]:
         for owner, each in _objects(name, dict(fields)):
             _record(owner, each, structure)
     # Nested objects carry no tags; leave them without a class ID.
-    return {"header": header, "class_ids": class_ids, "structure": structure}
+    return {
+        "header": header,
+        "sorted_by_file_id": _file_ids(text) == sorted(_file_ids(text)),
+        "class_ids": class_ids,
+        "structure": structure,
+    }
+
+
+def _file_ids(text: str) -> list[int]:
+    return [int(i) for i in re.findall(r"^--- !u!\d+ &(-?\d+)", text, re.MULTILINE)]
 
 
 def _compatible(ours: str, unity: str) -> bool:
@@ -130,6 +139,9 @@ def differences(text: str) -> list[str]:
     problems = [] if header == HEADER else [f"header {header} != {HEADER}"]
     tags = re.findall(r"^--- .*$", text, re.MULTILINE)
     problems += [f"document line {t!r}" for t in tags if not re.fullmatch(r"--- !u!\d+ &-?\d+", t)]
+    # Unity saves objects in ascending local file ID; another order is rewritten on its first save.
+    if STRUCTURE["sorted_by_file_id"] and _file_ids(text) != sorted(_file_ids(text)):
+        problems.append(f"documents not in ascending file ID order: {_file_ids(text)}")
     reference: Structure = STRUCTURE["structure"]
     seen = set()
     for class_id, name, fields in documents:
@@ -194,6 +206,7 @@ def test_an_unassigned_export_matches_too() -> None:
          "serializedVersion 7"),
         ("--- !u!206 ", "--- !u!207 ", "BlendTree is !u!207"),
         ("%YAML 1.1\n", "%YAML 1.2\n", "header"),
+        ("--- !u!91 &9100000\n", "--- !u!91 &2061000000000000000\n", "ascending file ID"),
     ],
 )  # fmt: skip
 def test_the_comparison_catches_what_unity_would_not_write(

@@ -16,6 +16,7 @@ from typing import Any
 HEADER = ["%YAML 1.1", "%TAG !u! tag:unity3d.com,2011:"]
 
 STRUCTURE: dict[str, Any] = {
+    "sorted_by_file_id": True,
     "class_ids": {
         "AnimatorController": 91,
         "AnimatorState": 1102,
