@@ -1,9 +1,9 @@
-"""Our Unity `.controller` compared field by field with one the Unity editor saved.
+"""Our Unity `.controller` compared field by field with two the Unity editor saved.
 
 The reference is not in the repository: `unity_controller_reference.py` holds only its structure
 (field names in order, value kinds, serializedVersions), made by `controller_structure` below from
-the file named there. To remake it, download that file and run
-``python tests/test_export_unity_reference.py path/to/Locomotion.controller``.
+the two files named there. To remake it, download them and run
+``python tests/test_export_unity_reference.py Locomotion.controller ThirdPersonAnimatorController.controller``.
 
 Both files are parsed with ruamel.yaml through the Unity-aware parser of tests/test_export.py.
 """
@@ -105,19 +105,25 @@ def parse_controller(text: str) -> list[tuple[int, str, dict[str, Any]]]:
     return documents
 
 
-def controller_structure(text: str) -> dict[str, Any]:
-    """The structure of a `.controller`: header lines, class IDs and, per class, fields and kinds."""
-    header = text.split("\n--- ", 1)[0].split("\n")
+def controller_structure(*texts: str) -> dict[str, Any]:
+    """The structure of `.controller` files: header lines, class IDs and, per class, fields and kinds.
+
+    Several files merge into one (they must agree on every field order); a field that holds a
+    fraction in any of them is a float field.
+    """
+    headers = {tuple(text.split("\n--- ", 1)[0].split("\n")) for text in texts}
+    (header,) = headers
     structure: Structure = {}
     class_ids: dict[str, int] = {}
-    for class_id, name, fields in parse_controller(text):
-        class_ids[name] = class_id
-        for owner, each in _objects(name, dict(fields)):
-            _record(owner, each, structure)
+    for text in texts:
+        for class_id, name, fields in parse_controller(text):
+            class_ids[name] = class_id
+            for owner, each in _objects(name, dict(fields)):
+                _record(owner, each, structure)
     # Nested objects carry no tags; leave them without a class ID.
     return {
-        "header": header,
-        "sorted_by_file_id": _file_ids(text) == sorted(_file_ids(text)),
+        "header": list(header),
+        "sorted_by_file_id": all(_file_ids(t) == sorted(_file_ids(t)) for t in texts),
         "class_ids": class_ids,
         "structure": structure,
     }
@@ -180,6 +186,7 @@ def test_the_fixture_records_unitys_2d_tree_with_asset_references() -> None:
     assert STRUCTURE["class_ids"]["BlendTree"] == 206
     child = STRUCTURE["structure"]["ChildMotion"]
     assert child["kinds"]["m_Motion"] == "ref" and child["kinds"]["m_Threshold"] == "float"
+    assert child["kinds"]["m_TimeScale"] == "float"  # 0.1 in the Standard Assets jump tree
     assert STRUCTURE["structure"]["BlendTree"]["kinds"]["m_BlendType"] == "int"
 
 
@@ -218,5 +225,6 @@ def test_the_comparison_catches_what_unity_would_not_write(
     assert any(expected in p for p in problems), problems
 
 
-if __name__ == "__main__":  # remake the fixture from a downloaded reference file
-    print(pprint.pformat(controller_structure(Path(sys.argv[1]).read_text(encoding="utf-8")), width=110))
+if __name__ == "__main__":  # remake the fixture from the downloaded reference files
+    texts = [Path(name).read_text(encoding="utf-8") for name in sys.argv[1:]]
+    print(pprint.pformat(controller_structure(*texts), width=110))

@@ -1,14 +1,19 @@
-"""Structure of a `.controller` saved by the Unity editor, the reference for our Unity export.
+"""Structure of `.controller` files saved by the Unity editor, the reference for our Unity export.
 
-Source (not copied here; only field names in order, value kinds and serializedVersions are kept):
-repository 3643926-cell/ZombieEscape, commit 2b1b065f6f01b7438a71a0333186ef0ab7824d91,
-path Assets/Animations/Locomotion.controller (https://github.com/3643926-cell/ZombieEscape).
-A Unity 2019.3-2021 era file (m_CorrespondingSourceObject/m_PrefabInstance/m_PrefabAsset; controller
-serializedVersion 5, state machine 6) with a 2D blend tree (m_BlendType 1, SimpleDirectional2D; a
-Freeform Cartesian tree, m_BlendType 3, has the same fields) whose seven children reference `.anim`
-clips by {fileID, guid, type}. Made by `controller_structure` in tests/test_export_unity_reference.py
-(`python tests/test_export_unity_reference.py Locomotion.controller`); its two AnimatorStateTransition
-objects were left out, as our export writes no transitions.
+Sources (not copied here; only field names in order, value kinds, serializedVersions and the
+document order are kept):
+
+1. 3643926-cell/ZombieEscape, commit 2b1b065f6f01b7438a71a0333186ef0ab7824d91,
+   Assets/Animations/Locomotion.controller: a 2D blend tree (m_BlendType 1, SimpleDirectional2D)
+   whose seven children reference `.anim` clips by {fileID: 7400000, guid, type: 2}.
+2. 2024-09-ITI415/mod4-worldbuilding24-Paycech, commit ca2d6aeb849bc3b39b8740c08efabbe41da30b47,
+   Assets/Standard Assets/Characters/ThirdPersonCharacter/Animator/ThirdPersonAnimatorController.controller,
+   saved by Unity 2022.3.42f1 (the project's ProjectVersion.txt): Freeform Cartesian 2D trees
+   (m_BlendType 3, Turn x Forward) whose children reference FBX takes by {fileID, guid, type: 3}.
+
+Both agree on every field order and serializedVersion below. Made by `controller_structure` in
+tests/test_export_unity_reference.py (run it on both files); their AnimatorStateTransition objects
+were left out, as our export writes no transitions.
 """
 
 from typing import Any
@@ -16,13 +21,13 @@ from typing import Any
 HEADER = ["%YAML 1.1", "%TAG !u! tag:unity3d.com,2011:"]
 
 STRUCTURE: dict[str, Any] = {
-    "sorted_by_file_id": True,
     "class_ids": {
         "AnimatorController": 91,
         "AnimatorState": 1102,
         "AnimatorStateMachine": 1107,
         "BlendTree": 206,
     },
+    "sorted_by_file_id": True,
     "structure": {
         "AnimatorController": {
             "fields": [
@@ -207,7 +212,7 @@ STRUCTURE: dict[str, Any] = {
                 "m_BlendType": "int",
                 "m_Childs": "list[ChildMotion]",
                 "m_CorrespondingSourceObject": "ref",
-                "m_MaxThreshold": "int",
+                "m_MaxThreshold": "float",
                 "m_MinThreshold": "int",
                 "m_Name": "str",
                 "m_NormalizedBlendValues": "int",
@@ -240,7 +245,7 @@ STRUCTURE: dict[str, Any] = {
                 "m_Motion": "ref",
                 "m_Position": "vector2",
                 "m_Threshold": "float",
-                "m_TimeScale": "int",
+                "m_TimeScale": "float",
                 "serializedVersion": "int",
             },
             "serializedVersion": 2,
