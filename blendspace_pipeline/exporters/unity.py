@@ -87,12 +87,13 @@ def render(space: EngineSpace, context: ExportContext) -> tuple[str, list[str], 
         if motion is None:
             unassigned.append(sample.name)
         motions.append(motion or "{fileID: 0}")
+    # In ascending file ID, the order Unity saves objects in, so its first save changes no lines.
     parts = [
         "%YAML 1.1\n%TAG !u! tag:unity3d.com,2011:\n",
         _controller(space),
-        _state_machine(),
-        _state(space),
         _blend_tree(space, motions),
+        _state(space),
+        _state_machine(),
     ]
     extra = {path: text for path, (text, exists) in metas.items() if not exists}
     return "".join(parts), _notes(space, unassigned, context), extra
