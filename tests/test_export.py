@@ -834,3 +834,59 @@ def test_export_command_reads_a_unity_project_and_checks_the_option(
     assert "--unity-project is for --engine unity" in capsys.readouterr().err
     assert main(["export", str(path), "--engine", "unity", "--unity-project", str(tmp_path / "nope")]) == 2
     assert "is not a folder" in capsys.readouterr().err
+
+
+def test_unreal_script_writes_the_foot_down_sync_markers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 13 item 6: the contacts' foot-down events become sync markers on their own track,
+    at times in the clip file (the used range's start added back), replacing ours on a re-run."""
+    raw = make_doc(LAYOUT).model_dump()
+    walk, run = raw["samples"][1], raw["samples"][2]
+    walk["markers"] = [{"name": "LeftFootDown", "time": 0.1}, {"name": "RightFootDown", "time": 0.6}]
+    run["markers"] = [{"name": "RightFootDown", "time": 0.25}]
+    info = {
+        "duration": 2.0,
+        "fps": 30.0,
+        "frames": 61,
+        "meters_per_unit": 1.0,
+        "units_source": "file",
+        "up_axis": "y",
+        "root": "hip midpoint",
+        "facing": "hip line",
+    }
+    run["clip"] = {**info, "range": [1.5, 3.5]}
+    doc = BlendSpaceDocument.model_validate(raw)
+    script = export(doc, "unreal").text
+    assert _literals(script)["SYNC_MARKERS"] == {
+        walk["name"]: [("LeftFootDown", 0.1), ("RightFootDown", 0.6)],
+        run["name"]: [("RightFootDown", 1.75)],
+    }
+    for existing_track in (False, True):
+        unreal, record = _stand_in_unreal(set())
+        calls: list[tuple[Any, ...]] = []
+        library = types.SimpleNamespace(
+            is_valid_anim_notify_track_name=lambda seq, track: not existing_track,
+            add_animation_notify_track=lambda seq, track: calls.append(("track", seq.args[0], track)),
+            remove_animation_sync_markers_by_track=lambda seq, track: calls.append(
+                ("clear", seq.args[0], track)
+            ),
+            add_animation_sync_marker=lambda seq, name, time, track: calls.append(
+                ("marker", seq.args[0], name, time, track)
+            ),
+        )
+        unreal.AnimationLibrary = library  # type: ignore[attr-defined]
+        saved: list[Any] = []
+        unreal.EditorAssetLibrary.save_loaded_asset = lambda asset, dirty: saved.append(asset) or True  # type: ignore[attr-defined]
+        monkeypatch.setitem(sys.modules, "unreal", unreal)
+        exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
+        assert not record["errors"]
+        first = "clear" if existing_track else "track"
+        assert (first, f"/Game/Animations/{walk['name']}", "blendspace_sync") in calls
+        assert (
+            "marker",
+            f"/Game/Animations/{run['name']}",
+            "RightFootDown",
+            1.75,
+            "blendspace_sync",
+        ) in calls
+        assert sum(c[0] == "marker" for c in calls) == 3
+        assert saved[-1] is record["asset"]  # the blend space is saved after the clips' markers

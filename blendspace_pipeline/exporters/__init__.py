@@ -17,7 +17,7 @@ from types import ModuleType
 
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.report.atomic import atomic_path
-from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument
+from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument, SampleDoc
 from blendspace_pipeline.space.layers_doc import parse_layers
 
 ENGINES = ("godot", "unity", "unreal")
@@ -67,6 +67,9 @@ class EngineSample:
     source: str
     position: tuple[float, float]
     generated: bool
+    # Foot-down sync markers (name, seconds from the start of the clip's file: the measured range's
+    # own times shifted by its `range:` start), for engines that sync by markers (Unreal).
+    markers: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -174,6 +177,7 @@ def to_engine(doc: BlendSpaceDocument, convention: Convention, source: str = "")
             source=s.source,
             position=(rounded(s.position[0] * factors[0][0]), rounded(s.position[1] * factors[1][0])),
             generated=s.generated,
+            markers=_markers(s),
         )
         for s in doc.samples
     ]
@@ -236,3 +240,10 @@ def duplicate_positions(space: EngineSpace) -> list[tuple[str, str]]:
         else:
             seen[sample.position] = sample.name
     return pairs
+
+
+def _markers(sample: SampleDoc) -> tuple[tuple[str, float], ...]:
+    if not sample.markers:
+        return ()
+    start = sample.clip.range[0] if sample.clip is not None and sample.clip.range else 0.0
+    return tuple((m.name, round(m.time + start, 6)) for m in sample.markers)

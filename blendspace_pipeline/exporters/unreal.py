@@ -78,6 +78,13 @@ AXES = [
 SAMPLES = [
 {samples}
 ]
+# Clip name -> [(marker, seconds)]: the feet's foot-down events the build measured, written as
+# sync markers on their own notify track so a blend space set to marker-based sync keeps the
+# feet in step (Unreal's sync groups match LeftFootDown/RightFootDown across clips).
+SYNC_TRACK = "blendspace_sync"
+SYNC_MARKERS = {{
+{markers}
+}}
 
 
 def fail(message):
@@ -189,6 +196,23 @@ def validate(blend_space, animations):
             fail(f"{{ASSET_NAME}}: sample {{name}} did not keep its clip or position ({{x}}, {{y}})")
 
 
+def add_sync_markers(animations):
+    """Replace the markers of our track on every clip that has measured foot-downs."""
+    for name, markers in SYNC_MARKERS.items():
+        library = unreal.AnimationLibrary
+        sequence = animations[name]
+        if not isinstance(sequence, unreal.AnimSequence):
+            fail(f"{{name}} is not an animation sequence; sync markers need one")
+        if library.is_valid_anim_notify_track_name(sequence, SYNC_TRACK):
+            library.add_animation_notify_track(sequence, SYNC_TRACK)  # the track is new
+        else:
+            library.remove_animation_sync_markers_by_track(sequence, SYNC_TRACK)
+        for marker, time in markers:
+            library.add_animation_sync_marker(sequence, marker, time, SYNC_TRACK)
+        if not unreal.EditorAssetLibrary.save_loaded_asset(sequence, False):
+            fail(f"could not save the sync markers of {{name}}")
+
+
 def headless():
     line = unreal.SystemLibrary.get_command_line().lower()
     return "-run=" in line or "-unattended" in line or "-nullrhi" in line
@@ -198,6 +222,7 @@ def main():
     skeleton = load_skeleton()
     generated = import_generated(skeleton)
     animations = load_animations(skeleton, generated)
+    add_sync_markers(animations)
     blend_space = create_blend_space(skeleton)
     blend_space.modify()
     set_axes(blend_space)
@@ -231,6 +256,11 @@ def render(space: EngineSpace, context: ExportContext) -> tuple[str, list[str], 
     samples = "\n".join(
         f"    ({s.name!r}, {_float(s.position[0])}, {_float(s.position[1])})," for s in space.samples
     )
+    markers = "\n".join(
+        f"    {s.name!r}: [{', '.join(f'({m!r}, {_float(t)})' for m, t in s.markers)}],"
+        for s in space.samples
+        if s.markers
+    )
     text = _TEMPLATE.format(
         name=space.name,
         source=space.source or f"{space.name}.blendspace.json",
@@ -241,6 +271,7 @@ def render(space: EngineSpace, context: ExportContext) -> tuple[str, list[str], 
         generated=generated,
         axes=axes,
         samples=samples,
+        markers=markers,
     )
     missing = [name for name, path in glbs.items() if path is None]
     notes = _notes(space)
