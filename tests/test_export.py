@@ -861,23 +861,7 @@ def test_unreal_script_writes_the_foot_down_sync_markers(monkeypatch: pytest.Mon
         run["name"]: [("RightFootDown", 1.75)],
     }
     for existing_track in (False, True):
-        unreal, record = _stand_in_unreal(set())
-        calls: list[tuple[Any, ...]] = []
-        library = types.SimpleNamespace(
-            is_valid_anim_notify_track_name=lambda seq, track: not existing_track,
-            add_animation_notify_track=lambda seq, track: calls.append(("track", seq.args[0], track)),
-            remove_animation_sync_markers_by_track=lambda seq, track: calls.append(
-                ("clear", seq.args[0], track)
-            ),
-            add_animation_sync_marker=lambda seq, name, time, track: calls.append(
-                ("marker", seq.args[0], name, time, track)
-            ),
-        )
-        unreal.AnimationLibrary = library  # type: ignore[attr-defined]
-        saved: list[Any] = []
-        unreal.EditorAssetLibrary.save_loaded_asset = lambda asset, dirty: saved.append(asset) or True  # type: ignore[attr-defined]
-        monkeypatch.setitem(sys.modules, "unreal", unreal)
-        exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
+        record, calls, saved = _run_with_animation_library(script, existing_track, monkeypatch)
         assert not record["errors"]
         first = "clear" if existing_track else "track"
         assert (first, f"/Game/Animations/{walk['name']}", "blendspace_sync") in calls
@@ -890,3 +874,24 @@ def test_unreal_script_writes_the_foot_down_sync_markers(monkeypatch: pytest.Mon
         ) in calls
         assert sum(c[0] == "marker" for c in calls) == 3
         assert saved[-1] is record["asset"]  # the blend space is saved after the clips' markers
+
+
+def _run_with_animation_library(
+    script: str, existing_track: bool, monkeypatch: pytest.MonkeyPatch
+) -> tuple[dict[str, Any], list[tuple[Any, ...]], list[Any]]:
+    """Run the script with a stand-in `unreal.AnimationLibrary` recording what it does to clips."""
+    unreal, record = _stand_in_unreal(set())
+    calls: list[tuple[Any, ...]] = []
+    saved: list[Any] = []
+    unreal.AnimationLibrary = types.SimpleNamespace(  # type: ignore[attr-defined]
+        is_valid_anim_notify_track_name=lambda seq, track: not existing_track,
+        add_animation_notify_track=lambda seq, track: calls.append(("track", seq.args[0], track)),
+        remove_animation_sync_markers_by_track=lambda seq, track: calls.append(("clear", seq.args[0], track)),
+        add_animation_sync_marker=lambda seq, name, time, track: calls.append(
+            ("marker", seq.args[0], name, time, track)
+        ),
+    )
+    unreal.EditorAssetLibrary.save_loaded_asset = lambda asset, dirty: saved.append(asset) or True  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "unreal", unreal)
+    exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
+    return record, calls, saved
