@@ -805,9 +805,9 @@ def reads(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     seen: list[str] = []
     real = readers.read_clips
 
-    def counting(path: Path) -> Any:
+    def counting(path: Path, **options: Any) -> Any:
         seen.append(path.name)
-        return real(path)
+        return real(path, **options)
 
     monkeypatch.setattr(measure_stage, "read_clips", counting)
     return seen
