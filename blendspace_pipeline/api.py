@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field
 
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
+from blendspace_pipeline.features import FEATURE_UNITS
 from blendspace_pipeline.space.placement import Axis
 
 __all__ = [
@@ -358,4 +359,4 @@ def iter_rule_classes(namespace: Mapping[str, object]) -> Iterator[type[Rule]]:
             yield value
 
 
-__all__ += ["Field", "RuleOptions", "iter_rule_classes", "placeholder"]
+__all__ += ["FEATURE_UNITS", "Field", "RuleOptions", "iter_rule_classes", "placeholder"]

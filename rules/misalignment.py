@@ -6,20 +6,10 @@ from collections.abc import Iterator
 
 from blendspace_pipeline.rules._geometry import main_axes
 
-from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView, placeholder
+from blendspace_pipeline.api import FEATURE_UNITS, Diagnostic, Rule, SampleView, SpaceView, placeholder
 
 # How far a measured feature may be from its `expect:` value before it is reported.
 EXPECT_TOLERANCE = {"m/s": 0.05, "deg/s": 1.5, "deg": 2.0, "s": 0.05}
-UNITS = {
-    "speed": "m/s",
-    "displacement_speed": "m/s",
-    "forward_speed": "m/s",
-    "lateral_speed": "m/s",
-    "direction": "deg",
-    "turn_rate": "deg/s",
-    "turn": "deg",
-    "duration": "s",
-}
 
 
 # Offsets below this (normalised units, 1e-4 of the axis range) are measurement noise, not a
@@ -66,7 +56,7 @@ class Misalignment(Rule):
                 if expected:
                     covered.add(axis.feature)
                 yield self.report(
-                    f"{sample.name} sits {sample.measured[axis_index]:+.3g} {UNITS.get(axis.feature, '')} "
+                    f"{sample.name} sits {sample.measured[axis_index]:+.3g} {FEATURE_UNITS.get(axis.feature, '')} "
                     f"off the {axis.feature} = 0 axis ({offset:.2f} normalised, at most {tau:g})"
                     + (f"; its expect: says {axis.feature} 0" if expected else ""),
                     clips=[sample.name],
@@ -92,7 +82,7 @@ class Misalignment(Rule):
             measured = sample.features.get(feature)
             if measured is None:
                 continue
-            unit = UNITS.get(feature, "")
+            unit = FEATURE_UNITS.get(feature, "")
             if abs(measured - wanted) <= EXPECT_TOLERANCE.get(unit, 0.05):
                 continue
             intended = [

@@ -6,6 +6,7 @@ into clip files. The models in `models` are the contract of spec.md and generate
 
 from __future__ import annotations
 
+from blendspace_pipeline.features import FEATURE_UNITS
 from blendspace_pipeline.manifest.loader import (
     KeyPath,
     LoadedManifest,
@@ -13,7 +14,7 @@ from blendspace_pipeline.manifest.loader import (
     Problem,
     load_manifest,
 )
-from blendspace_pipeline.manifest.models import FEATURE_UNITS, FEATURES, ClipEntry, FeatureName, Manifest
+from blendspace_pipeline.manifest.models import FEATURES, ClipEntry, FeatureName, Manifest
 
 __all__ = [
     "FEATURES",

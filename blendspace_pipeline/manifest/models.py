@@ -44,16 +44,6 @@ FEATURES: tuple[FeatureName, ...] = (
     "turn",
     "duration",
 )
-FEATURE_UNITS: dict[FeatureName, str] = {
-    "speed": "m/s",
-    "displacement_speed": "m/s",
-    "forward_speed": "m/s",
-    "lateral_speed": "m/s",
-    "direction": "deg",
-    "turn_rate": "deg/s",
-    "turn": "deg",
-    "duration": "s",
-}
 Unit = Literal["auto", "m", "cm", "mm", "in"]
 Weight = Annotated[float, Field(ge=0.0, le=1.0)]
 _SAFE_STEM = re.compile(r"[A-Za-z0-9_.\-]+")

@@ -34,16 +34,6 @@ from blendspace_pipeline.motion.detect import (
 )
 from blendspace_pipeline.motion.quaternions import FloatArray
 
-FEATURE_UNITS = {
-    "speed": "m/s",
-    "displacement_speed": "m/s",
-    "forward_speed": "m/s",
-    "lateral_speed": "m/s",
-    "direction": "deg",
-    "turn_rate": "deg/s",
-    "turn": "deg",
-    "duration": "s",
-}
 # Below these a clip has no root motion worth placing (a warning, not a silent origin sample).
 IN_PLACE_SPEED = 0.05  # m/s
 IN_PLACE_TURN_RATE = 3.0  # deg/s

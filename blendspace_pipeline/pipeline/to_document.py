@@ -7,8 +7,8 @@ from pathlib import Path
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.diagnostics import Diagnostic
+from blendspace_pipeline.features import FEATURE_UNITS
 from blendspace_pipeline.motion.contacts import FootContacts, sync_markers
-from blendspace_pipeline.motion.measure import FEATURE_UNITS
 from blendspace_pipeline.space.document import (
     AxisDoc,
     BlendSpaceDocument,

@@ -6,7 +6,7 @@ import json
 from html import escape
 from typing import Any
 
-from blendspace_pipeline.motion.measure import FEATURE_UNITS as UNITS
+from blendspace_pipeline.features import FEATURE_UNITS as UNITS
 from blendspace_pipeline.space.document import BlendSpaceDocument, SampleDoc
 
 SEVERITIES = ("error", "warning", "info")
