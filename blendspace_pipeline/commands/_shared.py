@@ -16,6 +16,7 @@ from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
 from blendspace_pipeline.checks.trust import NO_PLUGINS_VARIABLE
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
+from blendspace_pipeline.pipeline.cache import LIBRARY_VARIABLE
 
 if TYPE_CHECKING:  # the analysis loads only when a command runs one (a no-op replay never does)
     from blendspace_pipeline.space.model import BlendSpace
@@ -102,25 +103,35 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--jobs", type=_positive, default=1, metavar="N", help="measure clips in N processes (default 1)"
     )
+    parser.add_argument(
+        "--library",
+        metavar="STORE",
+        help="read measurements from a store written by `blendspace index` (a folder or fsspec URL) "
+        f"before measuring a clip; same as {LIBRARY_VARIABLE}=STORE",
+    )
 
 
 @contextmanager
-def plugin_policy(args: argparse.Namespace) -> Iterator[None]:
-    """`--no-plugins` for the length of one command: the rule engine (and --jobs workers, which
-    inherit the environment) read it from `BLENDSPACE_NO_PLUGINS`; restored afterwards so a
-    caller of `cli.main` in the same process is not affected."""
-    if not getattr(args, "no_plugins", False):
-        yield
-        return
-    before = os.environ.get(NO_PLUGINS_VARIABLE)
-    os.environ[NO_PLUGINS_VARIABLE] = "1"
+def command_environment(args: argparse.Namespace) -> Iterator[None]:
+    """`--no-plugins` and `--library` for the length of one command: the rule engine and the
+    measure stage (and --jobs workers, which inherit the environment) read them from
+    `BLENDSPACE_NO_PLUGINS` and `BLENDSPACE_LIBRARY_STORE`; restored afterwards so a caller of
+    `cli.main` in the same process is not affected."""
+    wanted = {}
+    if getattr(args, "no_plugins", False):
+        wanted[NO_PLUGINS_VARIABLE] = "1"
+    if getattr(args, "library", None):
+        wanted[LIBRARY_VARIABLE] = str(args.library)
+    before = {name: os.environ.get(name) for name in wanted}
+    os.environ.update(wanted)
     try:
         yield
     finally:
-        if before is None:
-            os.environ.pop(NO_PLUGINS_VARIABLE, None)
-        else:
-            os.environ[NO_PLUGINS_VARIABLE] = before
+        for name, value in before.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 def _positive(text: str) -> int:

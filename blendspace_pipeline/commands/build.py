@@ -8,9 +8,9 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline.commands._shared import (
     add_common,
+    command_environment,
     emit,
     exit_code,
-    plugin_policy,
     report_input_error,
 )
 from blendspace_pipeline.errors import EXIT_INPUT, InputError, UsageError
@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with plugin_policy(args):
+    with command_environment(args):
         return _stamped(args)
 
 

@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline.commands._shared import (
     add_common,
+    command_environment,
     emit,
     exit_code,
-    plugin_policy,
     report_input_error,
 )
 from blendspace_pipeline.errors import EXIT_INPUT, InputError
@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with plugin_policy(args):
+    with command_environment(args):
         if args.changed:
             from blendspace_pipeline.commands._changed import manifests_for, relative_names
 

@@ -47,35 +47,45 @@ def resolve_clip_files(
     """
     entries = loaded.model.clips if entries is None else entries
     matched = [_files_of(loaded, entry, (*key, index)) for index, entry in enumerate(entries)]
-    owners = _owners(matched, [_is_glob(loaded, entry) for entry in entries])
-
+    folders: dict[Path, Path] = {}
+    identities = [[_identity(file, folders) for file in files] for files in matched]
     globbed = [_is_glob(loaded, entry) for entry in entries]
+    owners = _owners(identities, globbed)
+
     resolved: list[ResolvedClipFile] = []
     for index, files in enumerate(matched):
         line, column = loaded.locate((*key, index))
-        for file in files:
+        for file, identity in zip(files, identities[index], strict=True):
             # Explicit entries always count: one long take listed twice with two `range:`s is two
             # clips (their names must differ). A glob yields a file to any entry that names it.
-            owner = owners[_identity(file)]
+            owner = owners[identity]
             if owner == index or (not globbed[index] and not globbed[owner]):
                 resolved.append(ResolvedClipFile(file, entries[index], index, line, column))
     return resolved
 
 
-def _owners(matched: list[list[Path]], globbed: list[bool]) -> dict[Path, int]:
+def _owners(identities: list[list[Path]], globbed: list[bool]) -> dict[Path, int]:
     """Which entry a file belongs to: the first explicit entry naming it, else the first glob."""
     owners: dict[Path, int] = {}
-    for index, files in enumerate(matched):
-        for file in files:
-            current = owners.get(_identity(file))
+    for index, files in enumerate(identities):
+        for identity in files:
+            current = owners.get(identity)
             if current is None or (globbed[current] and not globbed[index]):
-                owners[_identity(file)] = index
+                owners[identity] = index
     return owners
 
 
-def _identity(path: Path) -> Path:
-    # Two spellings of one file (a symlink, `a/../b`) must count as one clip.
-    return path.resolve()
+def _identity(path: Path, folders: dict[Path, Path]) -> Path:
+    """The file's real path: two spellings of one file (a symlink, `a/../b`) are one clip.
+
+    A glob's files share a folder, so the folder is resolved once (``folders`` remembers it) and
+    each file costs one `lstat`; resolving every path walks every folder above it, per file.
+    """
+    if path.is_symlink():
+        return path.resolve()
+    if path.parent not in folders:
+        folders[path.parent] = path.parent.resolve()
+    return folders[path.parent] / path.name
 
 
 def _pattern(entry: ClipEntry) -> str:

@@ -32,6 +32,10 @@ def cache_dir() -> Path | None:
     return Path(base) / "blendspace-pipeline"
 
 
+# A store written by `blendspace index` (a folder or fsspec URL), read when the local cache misses.
+LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
+
+
 # Bumped whenever the same clip would measure differently (a new feature, a changed detection),
 # so a developer's or CI's cache never serves results of older code under an unchanged version.
 # 3: detection from the body, sway-free heading; 4: foot contacts and plant phases;
@@ -39,11 +43,28 @@ def cache_dir() -> Path | None:
 MEASUREMENT_REVISION = 5
 
 
-def cache_key(path: Path, settings_key: str, time_range: tuple[float, float] | str | None) -> str:
-    digest = hashlib.sha256(content_digest(path).encode())
+def cache_key(
+    path: Path,
+    settings_key: str,
+    time_range: tuple[float, float] | str | None,
+    digest_of_file: str | None = None,
+) -> str:
+    """The entry of one file's measurements; ``digest_of_file`` saves hashing when it is known."""
+    digest = hashlib.sha256((digest_of_file or content_digest(path)).encode())
     # The file name too: clips are named after it, so two copies of one take must not share names.
     digest.update(f"|{path.name}|{__version__}|{MEASUREMENT_REVISION}|{settings_key}|{time_range!r}".encode())
     return digest.hexdigest()
+
+
+def stat_key(path: Path, info: os.stat_result) -> str:
+    """What identifies one version of a file without reading it."""
+    return f"{path.absolute()}|{info.st_size}|{info.st_mtime_ns}|{info.st_ino}"
+
+
+def settled(info: os.stat_result) -> bool:
+    """A file modified in the last seconds may change again within the clock's granularity with
+    the same size (git's "racy" case): its digest is remembered only once its mtime has settled."""
+    return time.time_ns() - info.st_mtime_ns > 2_000_000_000
 
 
 def content_digest(path: Path) -> str:
@@ -51,10 +72,10 @@ def content_digest(path: Path) -> str:
     not move is not read again, so a rebuild after one edit hashes one clip, not the library."""
     info = path.stat()
     folder = cache_dir()
-    stat_key = f"{path.absolute()}|{info.st_size}|{info.st_mtime_ns}|{info.st_ino}"
+    stat_key_ = stat_key(path, info)
     entry = None
     if folder is not None:
-        entry = folder / "digests" / f"{hashlib.sha256(stat_key.encode()).hexdigest()}.txt"
+        entry = folder / "digests" / f"{hashlib.sha256(stat_key_.encode()).hexdigest()}.txt"
         try:
             return entry.read_text(encoding="ascii").strip()
         except OSError:
@@ -64,9 +85,7 @@ def content_digest(path: Path) -> str:
         for block in iter(lambda: stream.read(1 << 20), b""):
             digest.update(block)
     value = digest.hexdigest()
-    # A file modified in the last seconds may change again within the clock's granularity with
-    # the same size (git's "racy" case): it is remembered only once its mtime has settled.
-    if entry is not None and time.time_ns() - info.st_mtime_ns > 2_000_000_000:
+    if entry is not None and settled(info):
         _write_atomic(entry, value)
     return value
 
@@ -86,20 +105,31 @@ def load(key: str) -> list[tuple[str, Measurement]] | None:
     folder = cache_dir()
     if folder is None:
         return None
+    try:
+        return from_json(json.loads((folder / f"{key}.json").read_text(encoding="utf-8")))
+    except (OSError, ValueError):
+        return None
+
+
+def from_json(entries: Any) -> list[tuple[str, Measurement]] | None:
+    """Stored entries as measurements; None for anything an older or damaged entry holds."""
     from blendspace_pipeline.motion.measure import Measurement
 
     try:
-        entries: list[dict[str, Any]] = json.loads((folder / f"{key}.json").read_text(encoding="utf-8"))
         return [(entry["name"], Measurement(**entry["measurement"])) for entry in entries]
-    except (OSError, ValueError, KeyError, TypeError):
+    except (KeyError, TypeError, ValueError):
         return None
+
+
+def to_json(measured: list[tuple[str, Measurement]]) -> list[dict[str, Any]]:
+    return [{"name": name, "measurement": asdict(m)} for name, m in measured]
 
 
 def store(key: str, measured: list[tuple[str, Measurement]]) -> None:
     folder = cache_dir()
     if folder is None:
         return
-    payload = json.dumps([{"name": name, "measurement": asdict(m)} for name, m in measured])
+    payload = json.dumps(to_json(measured))
     try:
         folder.mkdir(parents=True, exist_ok=True)
         handle, temporary = tempfile.mkstemp(dir=folder, suffix=".tmp")
@@ -108,3 +138,52 @@ def store(key: str, measured: list[tuple[str, Measurement]]) -> None:
         os.replace(temporary, folder / f"{key}.json")
     except OSError:
         pass  # a read-only or full cache folder must never fail a build
+
+
+class Pack:
+    """Everything one manifest's last run measured, in one file beside the per-clip entries.
+
+    A warm run of a 10,000-clip manifest would otherwise open two small files per clip (its
+    digest memo and its entry): 20,000 opens, seconds on a network home folder. The pack holds
+    the run's stat keys -> content digests and cache keys -> entries, so a clip whose stat did not
+    move costs one `stat` and a dictionary lookup. It is only a shortcut: a miss falls back to the
+    per-clip cache, and the pack is rewritten (atomically) with exactly what the run used, so it
+    never grows past one manifest's clips.
+    """
+
+    def __init__(self, owner: Path) -> None:
+        folder = cache_dir()
+        name = hashlib.sha256(f"{Path(owner).absolute()}|{__version__}|{MEASUREMENT_REVISION}".encode())
+        self.path = None if folder is None else folder / "packs" / f"{name.hexdigest()}.json"
+        self.digests: dict[str, str] = {}
+        self.entries: dict[str, Any] = {}
+        self.used_digests: dict[str, str] = {}
+        self.used_entries: dict[str, Any] = {}
+        if self.path is not None:
+            try:
+                stored = json.loads(self.path.read_text(encoding="utf-8"))
+                self.digests, self.entries = dict(stored["digests"]), dict(stored["entries"])
+            except (OSError, ValueError, KeyError, TypeError):
+                pass  # no pack yet, or a damaged one: the per-clip cache still answers
+
+    def digest(self, path: Path, info: os.stat_result) -> str | None:
+        return self.digests.get(stat_key(path, info))
+
+    def load(self, key: str) -> list[tuple[str, Measurement]] | None:
+        stored = self.entries.get(key)
+        return None if stored is None else from_json(stored)
+
+    def remember(
+        self, path: Path, info: os.stat_result, digest: str, key: str, measured: list[tuple[str, Measurement]]
+    ) -> None:
+        if settled(info):
+            self.used_digests[stat_key(path, info)] = digest
+        self.used_entries[key] = self.entries[key] if key in self.entries else to_json(measured)
+
+    def save(self) -> None:
+        """Write what this run used, unless it is what the pack already holds."""
+        if self.path is None or (
+            self.used_digests == self.digests and self.used_entries.keys() == self.entries.keys()
+        ):
+            return
+        _write_atomic(self.path, json.dumps({"digests": self.used_digests, "entries": self.used_entries}))

@@ -27,8 +27,8 @@ from typing import Any
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.measure import measure
-from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION
+from blendspace_pipeline.motion.measure import Measurement, measure
+from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, from_json
 from blendspace_pipeline.readers import read_clips, supported_suffixes
 
 INDEX_NAME = "index.parquet"
@@ -84,9 +84,39 @@ def measure_into_store(path: str, store: str, settings: RigSettings) -> list[dic
         fs.makedirs(os.path.dirname(entry), exist_ok=True)
         temporary = f"{entry}.{os.getpid()}.tmp"
         with fs.open(temporary, "w") as stream:
-            json.dump([{"name": name, "measurement": m} for name, m in measured], stream)
+            # The file's stem lets a build that finds these bytes under another name rename them.
+            stem = Path(path).stem
+            json.dump([{"name": name, "stem": stem, "measurement": m} for name, m in measured], stream)
         fs.mv(temporary, entry)
     return [_row(path, digest, name, m) for name, m in measured]
+
+
+def lookup(
+    store: str, digest: str, path: Path, settings: RigSettings
+) -> list[tuple[str, Measurement]] | None:
+    """A build's clip file as `blendspace index` measured it, when the store knows its bytes.
+
+    Entries are addressed by content and by the tool, measurement revision and rig settings
+    (`_entry_name`), so only a measurement this build would make itself is returned. Clip names
+    come from the file's name: an animation named after the library file's stem is renamed after
+    this one's. Entries written before the stem was stored, unreadable stores and damaged entries
+    give None, and the build measures the file itself.
+    """
+    import fsspec
+
+    try:
+        fs, root = fsspec.core.url_to_fs(store)
+        with fs.open(f"{root.rstrip('/')}/{_entry_name(digest, settings)}", "r") as stream:
+            items = json.load(stream)
+        renamed = []
+        for item in items:
+            stem, name = item["stem"], item["name"]
+            if name == stem or name.startswith(f"{stem}/"):
+                name = path.stem + name[len(stem) :]
+            renamed.append({"name": name, "measurement": item["measurement"]})
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return from_json(renamed)
 
 
 def _row(path: str, digest: str, name: str, measurement: dict[str, Any]) -> dict[str, Any]:

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import importlib.util
+import os
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 from blendspace_pipeline.errors import InputError, ManifestError
 from blendspace_pipeline.manifest import LoadedManifest
@@ -18,9 +22,22 @@ from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.limits import check_regular
 from blendspace_pipeline.space.model import MeasuredClip
 
-# One file to measure: its path, rig settings, `range:` and the project folder (see measure_file).
-Job = tuple[Path, RigSettings, TimeRange, Path | None]
-Result = list[tuple[str, Measurement]] | InputError
+
+class Job(NamedTuple):
+    """One file to measure (see measure_file); small, so it pickles cheaply to a worker."""
+
+    path: Path
+    settings: RigSettings
+    time_range: TimeRange
+    project: Path | None
+    library: str | None = None
+
+
+Measured = list[tuple[str, Measurement]]
+Result = Measured | InputError
+# What a worker sends back: the file's content digest and cache key with its measurements (a few
+# kilobytes), never the clip; input errors travel as values (their fields survive pickling).
+Keyed = tuple[str, str, Measured] | InputError
 
 
 def rig_settings(settings: SkeletonSettings) -> RigSettings:
@@ -47,50 +64,70 @@ def entry_settings(top: SkeletonSettings, entry: ClipEntry) -> SkeletonSettings:
 
 def measure_file(
     path: Path, settings: RigSettings, time_range: TimeRange, project: Path | None = None
-) -> list[tuple[str, Measurement]]:
+) -> Measured:
     """Measurements of every animation in ``path``, from the cache when the file is unchanged.
 
     ``project`` (the manifest's folder) is where the clip's references (glTF buffers, USD layers)
     may lie besides the clip's own folder."""
+    return _measure_keyed(Job(path, settings, time_range, project))[2]
+
+
+def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
+    path, settings, time_range, project, library = job
     check_regular(path, what="clip file")  # hashing a FIFO for the cache key would hang
-    key = cache.cache_key(path, settings.cache_key(), time_range)
+    digest = cache.content_digest(path)
+    key = cache.cache_key(path, settings.cache_key(), time_range, digest)
     cached = cache.load(key)
+    if cached is None and library and time_range is None:
+        from blendspace_pipeline.pipeline.library import lookup
+
+        cached = lookup(library, digest, path, settings)
     if cached is not None:
-        return cached
+        return digest, key, cached
     measured = [
         (clip.name, measure(clip, settings, time_range)) for clip in read_clips(path, project=project)
     ]
     cache.store(key, measured)
-    return measured
+    return digest, key, measured
 
 
-def _measure_job(job: Job) -> list[tuple[str, Measurement]] | InputError:
-    """Worker entry: input errors travel back as values (their fields survive pickling)."""
+def _measure_job(job: Job) -> Keyed:
+    """Worker entry: reads and measures one file; the parent gathers the small results."""
     try:
-        return measure_file(*job)
+        return _measure_keyed(job)
     except InputError as error:
         return error
 
 
+def library_store(explicit: str | None = None) -> str | None:
+    """The shared library store builds read measurements from (`--library` or the variable)."""
+    return explicit or os.environ.get(cache.LIBRARY_VARIABLE) or None
+
+
 def measure_files(
-    loaded: LoadedManifest, files: list[ResolvedClipFile], *, jobs: int = 1, progress: Progress | None = None
+    loaded: LoadedManifest,
+    files: list[ResolvedClipFile],
+    *,
+    jobs: int = 1,
+    progress: Progress | None = None,
+    library: str | None = None,
 ) -> list[MeasuredClip]:
     top = loaded.model.skeleton
-    job_list: list[Job] = [
-        (f.path, rig_settings(entry_settings(top, f.entry)), _range(f.entry), loaded.directory) for f in files
-    ]
-    results: list[list[tuple[str, Measurement]] | InputError] = []
-    if jobs > 1 and len(job_list) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for done, result in enumerate(pool.map(_measure_job, job_list, chunksize=8), start=1):
-                results.append(result)
-                if progress:
-                    progress(done, len(job_list), job_list[done - 1][0].name)
-    else:
-        for done, job in enumerate(job_list, start=1):
-            results.append(_measure_job(job))
-            if progress:
-                progress(done, len(job_list), job[0].name)
+    store = library_store(library)
+    if store and importlib.util.find_spec("fsspec") is None:
+        raise InputError(
+            f"reading the library store {store!r} needs fsspec, which is not installed",
+            path=loaded.path,
+            hint="pip install 'blendspace-pipeline[library]', or drop --library / "
+            f"{cache.LIBRARY_VARIABLE}",
+        )
+    settings_of: dict[int, RigSettings] = {}  # one per manifest entry, not per file
+    job_list: list[Job] = []
+    for f in files:
+        if id(f.entry) not in settings_of:
+            settings_of[id(f.entry)] = rig_settings(entry_settings(top, f.entry))
+        job_list.append(Job(f.path, settings_of[id(f.entry)], _range(f.entry), loaded.directory, store))
+    results = _measure_all(job_list, cache.Pack(loaded.path), jobs, progress)
     results = _one_answer_per_skeleton(job_list, results)
     clips: list[MeasuredClip] = []
     for resolved, result in zip(files, results, strict=True):
@@ -99,6 +136,55 @@ def measure_files(
         clips += _named(resolved, result)
     _reject_duplicate_names(loaded, clips)
     return clips
+
+
+def _measure_all(job_list: list[Job], pack: cache.Pack, jobs: int, progress: Progress | None) -> list[Result]:
+    """Every job's measurements: from the manifest's pack with one `stat` per unchanged file, the
+    rest read and measured (by ``jobs`` worker processes when there is more than one to do)."""
+    results: list[Result | None] = [None] * len(job_list)
+    stats: dict[int, os.stat_result] = {}
+    todo: list[int] = []
+    for index, job in enumerate(job_list):
+        try:
+            info = os.stat(job.path)
+        except OSError:
+            todo.append(index)  # the worker raises the error with the entry's line
+            continue
+        stats[index] = info
+        digest = pack.digest(job.path, info)
+        key = digest and cache.cache_key(job.path, job.settings.cache_key(), job.time_range, digest)
+        measured = pack.load(key) if digest and key else None
+        if digest and key and measured is not None:
+            pack.remember(job.path, info, digest, key, measured)
+            results[index] = measured
+        else:
+            todo.append(index)
+    done = len(job_list) - len(todo)
+    if progress and done:
+        progress(done, len(job_list), "cached")
+    for index, keyed in zip(todo, _run(jobs, [job_list[i] for i in todo]), strict=True):
+        done += 1
+        if progress:
+            progress(done, len(job_list), job_list[index].path.name)
+        if isinstance(keyed, InputError):
+            results[index] = keyed
+            continue
+        digest, key, measured = keyed
+        if index in stats:
+            pack.remember(job_list[index].path, stats[index], digest, key, measured)
+        results[index] = measured
+    pack.save()
+    return [r for r in results if r is not None]
+
+
+def _run(jobs: int, job_list: list[Job]) -> Iterator[Keyed]:
+    if jobs > 1 and len(job_list) > 1:
+        # Chunks keep the per-task overhead small; workers return digests and measurements only.
+        chunk = max(1, min(16, len(job_list) // (4 * jobs)))
+        with ProcessPoolExecutor(max_workers=min(jobs, len(job_list))) as pool:
+            yield from pool.map(_measure_job, job_list, chunksize=chunk)
+    else:
+        yield from map(_measure_job, job_list)
 
 
 def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Result]:
@@ -112,7 +198,7 @@ def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Res
     """
     groups: dict[str, list[tuple[int, int]]] = {}
     for index, (job, result) in enumerate(zip(jobs, results, strict=True)):
-        settings = job[1]
+        settings = job.settings
         if isinstance(result, InputError) or settings.units != "auto" or settings.up != "auto":
             continue
         for position, (_, measurement) in enumerate(result):
@@ -137,16 +223,15 @@ def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Res
         return results
     pooled = list(results)
     for index, (up, units) in redo.items():
-        path, settings, time_range, project = jobs[index]
-        agreed = replace(settings, up=up, units=units)
-        again = _measure_job((path, agreed, time_range, project))
+        agreed = replace(jobs[index].settings, up=up, units=units)
+        again = _measure_job(jobs[index]._replace(settings=agreed))
         if isinstance(again, InputError):
             continue  # the reading of its own stands; units-doubt names it
         note = (
             f"up axis {up.upper()} and {units:.4g} m per unit taken from the other clips of the same "
             "skeleton (one rig, one answer)"
         )
-        pooled[index] = [(name, replace(m, notes=[*m.notes, note])) for name, m in again]
+        pooled[index] = [(name, replace(m, notes=[*m.notes, note])) for name, m in again[2]]
     return pooled
 
 

@@ -1,0 +1,161 @@
+"""The measure stage's shortcuts: the manifest's pack of measurements, the shared library store,
+and worker processes. Each must give exactly what measuring the files here gives."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import asdict
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.manifest import load_manifest
+from blendspace_pipeline.manifest.paths import resolve_clip_files
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline import cache, measure_stage
+from blendspace_pipeline.pipeline.measure_stage import measure_files
+from blendspace_pipeline.space.model import MeasuredClip
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+SPECS = [
+    GaitSpec("idle", duration=1.0),
+    GaitSpec("walk", speed=1.4, duration=1.0),
+    GaitSpec("run_left", speed=4.0, turn_rate=90.0, duration=1.0),
+]
+
+
+def _project(root: Path, *, settled: bool = True) -> Path:
+    clips = root / "clips"
+    clips.mkdir(parents=True)
+    for spec in SPECS:
+        write_bvh_clip(generate(spec), clips / f"{spec.name}.bvh")
+        if settled:  # as if written a minute ago: digests of racy files are not remembered
+            os.utime(clips / f"{spec.name}.bvh", ns=(1_700_000_000_000_000_000,) * 2)
+    manifest = root / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: gait\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    return manifest
+
+
+def _measured(manifest: Path, **options: object) -> list[MeasuredClip]:
+    loaded = load_manifest(manifest)
+    return measure_files(loaded, resolve_clip_files(loaded), **options)  # type: ignore[arg-type]
+
+
+def _summary(clips: list[MeasuredClip]) -> list[tuple[str, dict[str, object]]]:
+    return [(c.name, asdict(c.measurement)) for c in clips]
+
+
+class Counter:
+    """Counts real measurements (the reader + measure), delegating to the real code."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.calls = 0
+        real = measure_stage.measure
+
+        def counted(*args: object, **kwargs: object) -> object:
+            self.calls += 1
+            return real(*args, **kwargs)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(measure_stage, "measure", counted)
+
+
+def test_the_pack_serves_a_warm_run_without_the_per_clip_entries(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "p")
+    counter = Counter(monkeypatch)
+    cold = _measured(manifest)
+    assert counter.calls == 3
+    packs = list((tmp_path / "cache" / "packs").glob("*.json"))
+    assert len(packs) == 1
+    # Without the per-clip entries and digest memos, only the pack can answer.
+    for entry in (tmp_path / "cache").glob("*.json"):
+        entry.unlink()
+    shutil.rmtree(tmp_path / "cache" / "digests", ignore_errors=True)
+    assert _summary(_measured(manifest)) == _summary(cold)
+    assert counter.calls == 3
+
+    # An edited clip is measured again (and only it); the pack then holds the new reading.
+    write_bvh_clip(generate(GaitSpec("walk", speed=2.0, duration=1.0)), tmp_path / "p" / "clips" / "walk.bvh")
+    edited = _measured(manifest)
+    assert counter.calls == 4
+    assert {c.name: round(c.measurement.features["speed"], 1) for c in edited}["walk"] == 2.0
+    assert _summary(_measured(manifest)) == _summary(edited)
+    assert counter.calls == 4  # a racy file is hashed again, and the per-clip entry answers
+
+
+def test_a_damaged_pack_is_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "p")
+    cold = _measured(manifest)
+    for pack in (tmp_path / "cache" / "packs").glob("*.json"):
+        pack.write_text('{"digests": {"x": 1}, "entries": [', encoding="utf-8")
+    assert _summary(_measured(manifest)) == _summary(cold)
+    for pack in (tmp_path / "cache" / "packs").glob("*.json"):
+        # Wrong shapes inside a readable pack: measured again, not a crash.
+        pack.write_text('{"digests": {}, "entries": {"k": [{"name": 3}]}}', encoding="utf-8")
+    assert _summary(_measured(manifest)) == _summary(cold)
+
+
+def test_worker_processes_measure_what_one_process_measures(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    manifest = _project(tmp_path / "p")
+    assert _summary(_measured(manifest, jobs=2)) == _summary(_measured(manifest, jobs=1))
+
+
+def test_builds_read_the_library_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("fsspec")
+    from blendspace_pipeline.pipeline.library import measure_into_store
+
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "p")
+    expected = _summary(_measured(manifest))
+    shutil.rmtree(tmp_path / "cache")
+
+    # The library holds the same bytes under other names (a mocap archive's own naming).
+    store = str(tmp_path / "store")
+    library = tmp_path / "library"
+    library.mkdir()
+    for spec in SPECS:
+        copy = library / f"session3_take_{spec.name}.bvh"
+        shutil.copyfile(tmp_path / "p" / "clips" / f"{spec.name}.bvh", copy)
+        rows = measure_into_store(str(copy), store, RigSettings())
+        assert rows and "error" not in rows[0]
+
+    counter = Counter(monkeypatch)
+    from_store = _measured(manifest, library=store)
+    assert counter.calls == 0
+    assert _summary(from_store) == expected  # names follow the build's files, not the library's
+
+    # A store measured with other rig settings does not answer; the build measures itself.
+    shutil.rmtree(tmp_path / "cache")
+    (tmp_path / "p" / "manifest.yaml").write_text(
+        "schema_version: 1\nname: gait\nskeleton: {up: y}\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8"
+    )
+    _measured(manifest, library=store)
+    assert counter.calls == 3
+
+
+def test_build_and_check_take_the_library_option(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("fsspec")
+    from blendspace_pipeline.pipeline.library import measure_into_store
+
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv(cache.LIBRARY_VARIABLE, raising=False)
+    manifest = _project(tmp_path / "p")
+    store = str(tmp_path / "store")
+    for spec in SPECS:
+        measure_into_store(str(tmp_path / "p" / "clips" / f"{spec.name}.bvh"), store, RigSettings())
+    counter = Counter(monkeypatch)
+    assert main(["check", str(manifest), "--library", store]) in (0, 1)
+    assert counter.calls == 0
+    assert cache.LIBRARY_VARIABLE not in os.environ  # restored after the command
+    capsys.readouterr()
