@@ -1,23 +1,35 @@
-"""BVH clips: the hierarchy parsed line by line, the MOTION block in one vectorised numpy pass.
+"""BVH clips: the hierarchy parsed line by line, the MOTION block by a C CSV reader in one pass.
 
 Any channel count and order per joint (position channels on any joint replace its OFFSET, as
 BVH defines), any rotation order (the CHANNELS order is the intrinsic Euler order), End Sites,
 several roots, CRLF or LF line ends, tabs. BVH has no unit and no up axis: `Clip.meters_per_unit`
 and `Clip.up_axis` stay None and measurement detects them.
 
-Speed matters because studios keep thousands of mocap takes: the MOTION numbers are parsed by
-numpy's C float parser in one call and the Euler angles of all joints that share a rotation order
-are converted in one vectorised call. Only when the numbers do not add up does the reader walk the
-lines one by one, to name the line that is wrong.
+Speed matters because studios keep thousands of mocap takes (1,000 clips are ~460 MB of text).
+The MOTION numbers go through three parsers, fastest first, each used only when the one before it
+cannot vouch for its result, so all three give the same values and the same errors:
+
+1. pyarrow's CSV reader (~5x numpy's text parser), strict: it is kept only when it returns
+   exactly ``Frames`` rows of one float per channel, no empty field and no NaN/inf;
+2. numpy's ``fromstring``, which ignores line structure (wrapped frames, mixed whitespace);
+3. a line-by-line walk that names the ``path:line`` of the first wrong frame.
+
+Both C parsers round every decimal correctly, as Python's ``float`` does, so the values are the
+same to the bit. Euler angles of all joints that share a rotation order are converted in one
+vectorised call, with the sine and cosine of a channel that never moves taken once.
 """
 
 from __future__ import annotations
 
+import importlib
 import math
 import re
+import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,6 +47,9 @@ from blendspace_pipeline.readers.limits import (
 )
 from blendspace_pipeline.readers.provenance import strip_bvh_provenance
 
+if TYPE_CHECKING:
+    from pyarrow import Table
+
 SUFFIXES = (".bvh",)
 _POSITION = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -44,6 +59,11 @@ _FRAMES = re.compile(r"^[ \t]*Frames[ \t]*:[^\n]*", re.MULTILINE | re.IGNORECASE
 # Unwrapped angles of a long take can pass a few thousand degrees; a million is corrupt data.
 _MAX_ANGLE = 1e6
 _REEXPORT = "re-export the clip as BVH from the DCC or mocap software"
+# pyarrow costs ~70 ms to import, numpy's parser ~30 ms per MB: a process that reads one small
+# clip (`blendspace check` of a tiny space) keeps numpy; once it has parsed this many bytes it is
+# reading a library and the import pays for itself within a few clips.
+ARROW_AFTER_BYTES = 2_000_000
+_parsed_bytes = 0
 
 
 @dataclass
@@ -73,13 +93,31 @@ class BvhHeader:
 
 
 def read(path: Path) -> list[Clip]:
-    # A generated clip's provenance is a comment after the last frame; it is not motion data.
-    text = strip_bvh_provenance(_text(path))
-    # Split only the header into lines; the MOTION numbers go to numpy as one string.
+    raw = _raw(path)
+    text = _without_provenance(raw.decode("utf-8", errors="replace"))
+    # Split only the header into lines; the MOTION numbers go to a C parser as one block.
     header, head_end = _split_header(text, path)
     data_start = text.count("\n", 0, head_end) + 1  # the 1-based line that `data` begins on
-    values = _motion(text[head_end:], data_start, header, path)
-    return [_clip(path, header, values)]
+    # ASCII (nearly every BVH): offsets in the text are offsets in the bytes, so the C CSV parser
+    # reads the file's own buffer without a copy.
+    block = memoryview(raw)[head_end : len(text)] if raw.isascii() else text[head_end:].encode()
+    by_channel = _motion(text[head_end:], block, data_start, header, path)
+    return [_clip(path, header, by_channel)]
+
+
+def _without_provenance(text: str) -> str:
+    """`strip_bvh_provenance` on the last line with text only: the record can be nowhere else, and
+    searching a 0.5 MB take for it from the end cost more than parsing its header."""
+    end = len(text)
+    while end and text[end - 1].isspace():  # the same characters `str.strip` removes
+        end -= 1
+    line_start = text.rfind("\n", 0, end) + 1
+    if line_start == 0:
+        return strip_bvh_provenance(text)
+    # From the newline before that line: `strip_bvh_provenance` checks the record starts a line.
+    tail = text[line_start - 1 :]
+    kept = strip_bvh_provenance(tail)
+    return text if kept is tail else text[: line_start - 1 + len(kept)]
 
 
 def read_header(path: Path) -> BvhHeader:
@@ -105,6 +143,10 @@ def _split_header(text: str, path: Path) -> tuple[BvhHeader, int]:
 
 
 def _text(path: Path) -> str:
+    return _raw(path).decode("utf-8", errors="replace")
+
+
+def _raw(path: Path) -> bytes:
     raw = read_regular_file(path, what="BVH file")
     if raw.startswith(b"\xef\xbb\xbf"):
         raw = raw[3:]  # a UTF-8 byte-order mark, written by some Windows tools
@@ -113,7 +155,7 @@ def _text(path: Path) -> str:
     if b"\r" in raw and b"\n" not in raw:
         # Classic Mac line endings (lone CR), still written by some old exporters.
         raw = raw.replace(b"\r", b"\n")
-    return raw.decode("utf-8", errors="replace")
+    return raw
 
 
 def parse_header(lines: list[str], path: Path) -> BvhHeader:
@@ -315,14 +357,17 @@ def _motion_header(lines: list[str], index: int, header: BvhHeader, path: Path) 
         )
 
 
-def _motion(data: str, data_start: int, header: BvhHeader, path: Path) -> FloatArray:
-    """(frames, channels) values; the fast path is one numpy parse of the whole block.
+def _motion(
+    data: str, block: bytes | memoryview, data_start: int, header: BvhHeader, path: Path
+) -> FloatArray:
+    """(channels, frames) values, channel-major (what the Euler conversion reads row by row).
 
-    ``data`` starts at the end of the last MOTION header line, which is line ``data_start``.
-    Line breaks inside the block do not matter when the count is right (some exporters wrap long
-    frames); only a wrong count, a token numpy cannot read or a NaN/inf sends the reader line by
-    line to name the culprit.
+    ``data`` (and its bytes, ``block``) starts at the end of the last MOTION header line, which is
+    line ``data_start``. The two C parsers are tried in turn (see the module docstring); only a
+    wrong count, a token they cannot read or a NaN/inf sends the reader line by line to name the
+    culprit.
     """
+    global _parsed_bytes
     channels = header.channel_count
     if channels == 0:
         raise ClipReadError(
@@ -331,18 +376,75 @@ def _motion(data: str, data_start: int, header: BvhHeader, path: Path) -> FloatA
             line=header.motion_line,
             hint="export the skeleton with its animation channels",
         )
-    with warnings.catch_warnings():
-        # Older numpy warns (DeprecationWarning) instead of raising on a token it cannot parse.
-        warnings.simplefilter("error", DeprecationWarning)
-        try:
-            values = np.fromstring(data, dtype=np.float64, sep=" ")
-        except (ValueError, DeprecationWarning):
-            values = np.zeros(0)
-    if not (values.size == header.frames * channels and np.isfinite(values).all()):
-        values = _motion_slow(data.split("\n"), data_start, header, path)
-    values = values.reshape(header.frames, channels)
-    _check_magnitudes(values, header, data_start, path)
-    return values
+    _parsed_bytes += len(block)
+    csv = _arrow_csv() if _parsed_bytes > ARROW_AFTER_BYTES or "pyarrow.csv" in sys.modules else None
+    by_channel = None if csv is None else _motion_arrow(csv, block, header.frames, channels)
+    if by_channel is None:
+        with warnings.catch_warnings():
+            # Older numpy warns (DeprecationWarning) instead of raising on a token it cannot parse.
+            warnings.simplefilter("error", DeprecationWarning)
+            try:
+                values = np.fromstring(data, dtype=np.float64, sep=" ")
+            except (ValueError, DeprecationWarning):
+                values = np.zeros(0)
+        if not (values.size == header.frames * channels and np.isfinite(values).all()):
+            values = _motion_slow(data.split("\n"), data_start, header, path)
+        by_channel = np.ascontiguousarray(values.reshape(header.frames, channels).T)
+    _check_magnitudes(by_channel.T, header, data_start, path)
+    return by_channel
+
+
+def _arrow_csv() -> ModuleType | None:
+    """``pyarrow.csv``, or None when pyarrow is not installed (numpy's parser then does it all)."""
+    try:
+        return importlib.import_module("pyarrow.csv")
+    except ImportError:
+        return None
+
+
+def _motion_arrow(
+    csv: ModuleType, block: bytes | memoryview, frames: int, channels: int
+) -> FloatArray | None:
+    """The (channels, frames) values by pyarrow's CSV reader, or None when it cannot vouch for them.
+
+    One field per value between single delimiters: the delimiter (space or tab) and a trailing
+    delimiter are read from the first frame line, as exporters write every line alike. Any line
+    that differs (a run of spaces, a value too many or too few, a wrapped frame, a stray token)
+    makes the reader fail or gives a wrong row count, a NaN or inf fails the finiteness check, and
+    None hands the block to numpy. pyarrow parses floats with fast_float, correctly rounded like
+    numpy and ``float``, so a table it returns whole holds exactly the values they would give.
+    """
+    import pyarrow as pa
+
+    first = bytes(block[:4096]).lstrip(b"\r\n").split(b"\n", 1)[0].rstrip(b"\r")
+    delimiter = "\t" if b"\t" in first and b" " not in first else " "
+    trailing = first.endswith(delimiter.encode())
+    names = [f"c{index}" for index in range(channels + trailing)]
+    types = {name: pa.float64() for name in names[:channels]}
+    if trailing:
+        types[names[-1]] = pa.string()  # the field after the last delimiter: must be empty
+    try:
+        table: Table = csv.read_csv(
+            pa.py_buffer(block),
+            read_options=csv.ReadOptions(
+                use_threads=False, column_names=names, block_size=min(len(block) + 1, 2**31 - 1)
+            ),
+            parse_options=csv.ParseOptions(delimiter=delimiter, quote_char=False),
+            # No null spellings: an empty field is an error, "nan" a NaN (caught below).
+            convert_options=csv.ConvertOptions(column_types=types, null_values=[]),
+        )
+    except (pa.ArrowException, ValueError):
+        return None
+    if table.num_rows != frames or table.num_columns != len(names):
+        return None
+    if trailing and any(c.offsets[-1].as_py() != c.offsets[0].as_py() for c in table.column(channels).chunks):
+        return None  # a value after what the first line left empty: one value too many
+    by_channel = np.empty((channels, frames))
+    for index in range(channels):
+        by_channel[index] = table.column(index).to_numpy()
+    if not np.isfinite(by_channel).all():
+        return None  # the slow path names the line with the NaN or inf
+    return by_channel
 
 
 def _check_magnitudes(values: FloatArray, header: BvhHeader, data_start: int, path: Path) -> None:
@@ -427,7 +529,8 @@ def _motion_value(token: str, frame: int, column: int, path: Path, line: int) ->
     return value
 
 
-def _clip(path: Path, header: BvhHeader, values: FloatArray) -> Clip:
+def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
+    """The clip from the (channels, frames) values: row r of ``by_channel`` is channel r."""
     joints = header.joints
     frames = header.frames
     count = len(joints)
@@ -442,14 +545,12 @@ def _clip(path: Path, header: BvhHeader, values: FloatArray) -> Clip:
         for name in joint.channels:
             key = name.lower()
             if key in _POSITION:
-                translations[:, index, _POSITION[key]] = values[:, column]
+                translations[:, index, _POSITION[key]] = by_channel[column]
             else:
                 order += _ROTATION[key]
                 rotation_columns.append(column)
             column += 1
         by_order.setdefault(order, []).append((index, rotation_columns))
-    # Channel-major angles: row r of `by_channel` is channel r over all frames, contiguous.
-    by_channel = np.ascontiguousarray(values.T)
     for order, members in by_order.items():
         indices = [m[0] for m in members]
         if not order:
@@ -457,7 +558,7 @@ def _clip(path: Path, header: BvhHeader, values: FloatArray) -> Clip:
             continue
         # (letters, joints, frames), contiguous: one block of angles per letter of the order.
         angles = by_channel[np.array([m[1] for m in members]).T]
-        rotations[:, indices] = np.moveaxis(euler_quaternions(angles, order), 0, -1).transpose(1, 0, 2)
+        rotations[:, indices] = euler_quaternions(angles, order).T
     skeleton = Skeleton(
         names=tuple(j.name for j in joints),
         parents=tuple(j.parent for j in joints),
@@ -481,13 +582,45 @@ def euler_quaternions(angles_deg: FloatArray, order: str) -> FloatArray:
     Same convention (intrinsic, ``R = R[order[0]] * R[order[1]] * ...``), but each step multiplies
     by a one-axis quaternion in closed form on whole contiguous rows, so reading a BVH costs about
     one sine and one cosine per angle; the general Hamilton product was a third of read time.
+    A joint none of whose angles moves over the last axis (frames) is converted once.
     """
-    half = np.radians(angles_deg) * 0.5
-    sines, cosines = np.sin(half), np.cos(half)
-    q = np.zeros((4, *half.shape[1:]))
+    angles = np.asarray(angles_deg, dtype=np.float64)
+    if angles.ndim < 3 or angles.shape[-1] < 2:
+        return _compose(angles, order)
+    still = (angles == angles[..., :1]).all(axis=-1).all(axis=0)  # (joints...,)
+    if not still.any():
+        return _compose(angles, order)
+    q = np.empty((4, *angles.shape[1:]))
+    q[:, still] = _compose(angles[:, still, :1], order)  # broadcast over the frames
+    moving = ~still
+    if moving.any():
+        q[:, moving] = _compose(angles[:, moving], order)
+    return q
+
+
+def _compose(angles_deg: FloatArray, order: str) -> FloatArray:
+    """(4, ...) quaternions of the intrinsic rotations ``angles_deg`` (len(order), ...)."""
+    sines, cosines = _half_angle_sines(angles_deg)
+    q = np.empty((4, *sines.shape[1:]))
     first = "XYZ".index(order[0].upper())
-    q[first], q[3] = sines[0], cosines[0]
-    for row in range(1, len(order)):
+    if len(order) > 1 and order[1].upper() != order[0].upper():
+        # The first two one-axis factors multiplied out: each part has a single term (what the
+        # general step below gives too, as its other terms are exact zeros).
+        k = "XYZ".index(order[1].upper())
+        i, j = (k + 1) % 3, (k + 2) % 3
+        s0, c0, s1, c1 = sines[0], cosines[0], sines[1], cosines[1]
+        q[k] = s1 * c0
+        q[3] = c1 * c0
+        if first == i:
+            q[i], q[j] = c1 * s0, -(s1 * s0)
+        else:
+            q[i], q[j] = s1 * s0, c1 * s0
+        start = 2
+    else:
+        q[:3] = 0.0
+        q[first], q[3] = sines[0], cosines[0]
+        start = 1
+    for row in range(start, len(order)):
         # q * (s e_k + c): with (k, i, j) cyclic, the k, i, j and w parts below.
         k = "XYZ".index(order[row].upper())
         i, j = (k + 1) % 3, (k + 2) % 3
@@ -499,3 +632,24 @@ def euler_quaternions(angles_deg: FloatArray, order: str) -> FloatArray:
         step[3] = c * q[3] - s * q[k]
         q = step
     return q
+
+
+def _half_angle_sines(angles_deg: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Sine and cosine of half of every angle (degrees), each taken once per constant channel.
+
+    Sine and cosine are nearly all of the conversion's cost, and many channels never move (a
+    synthetic rig's fingers, the zero twist of a mocap knee: 50 of 60 channels of a procedural
+    walk, a quarter of a CMU take's): their one value is converted once and repeated.
+    """
+    if angles_deg.ndim < 2 or angles_deg.shape[-1] < 2:
+        half = np.radians(angles_deg) * 0.5
+        return np.sin(half), np.cos(half)
+    rows = angles_deg.reshape(-1, angles_deg.shape[-1])
+    still = (rows == rows[:, :1]).all(axis=1)
+    sines, cosines = np.empty_like(rows), np.empty_like(rows)
+    moving = ~still
+    half = np.radians(rows[moving]) * 0.5
+    sines[moving], cosines[moving] = np.sin(half), np.cos(half)
+    half = np.radians(rows[still, 0]) * 0.5
+    sines[still], cosines[still] = np.sin(half)[:, None], np.cos(half)[:, None]
+    return sines.reshape(angles_deg.shape), cosines.reshape(angles_deg.shape)
