@@ -136,34 +136,20 @@ def validate_clip(clip: Clip) -> Clip:
 def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
     """World rotations (F, J, 4) and positions (F, J, 3) of every joint on every frame.
 
-    Vectorised over frames and over all joints at the same depth: one numpy pass per level of the
-    hierarchy (about 7 for a humanoid) instead of one per joint. Each joint gets the same
-    products, in the same order, as composing it alone with its parent.
+    Vectorised over frames: one numpy operation per joint, parents first.
     """
     skeleton = clip.skeleton
     world_rot = np.empty_like(clip.rotations)
     world_pos = np.empty_like(clip.translations)
-    roots, levels = _levels(skeleton.parents if skeleton.has_hierarchy else (-1,) * skeleton.joint_count)
-    world_rot[:, roots] = clip.rotations[:, roots]
-    world_pos[:, roots] = clip.translations[:, roots]
-    for joints, parents in levels:
-        parent_rot = world_rot[:, parents]
-        world_rot[:, joints] = quat.multiply(parent_rot, clip.rotations[:, joints])
-        world_pos[:, joints] = world_pos[:, parents] + quat.rotate(parent_rot, clip.translations[:, joints])
+    for joint, parent in enumerate(skeleton.parents):
+        if parent < 0 or not skeleton.has_hierarchy:
+            world_rot[:, joint] = clip.rotations[:, joint]
+            world_pos[:, joint] = clip.translations[:, joint]
+            continue
+        parent_rot = world_rot[:, parent]
+        world_rot[:, joint] = quat.multiply(parent_rot, clip.rotations[:, joint])
+        world_pos[:, joint] = world_pos[:, parent] + quat.rotate(parent_rot, clip.translations[:, joint])
     return world_rot, world_pos
-
-
-def _levels(parents: tuple[int, ...]) -> tuple[list[int], list[tuple[list[int], list[int]]]]:
-    """The root joints, then (joints, their parents) one depth at a time, roots' children first."""
-    depth: list[int] = []
-    for parent in parents:
-        depth.append(0 if parent < 0 else depth[parent] + 1)
-    levels: list[tuple[list[int], list[int]]] = [([], []) for _ in range(max(depth, default=0))]
-    for joint, parent in enumerate(parents):
-        if parent >= 0:
-            levels[depth[joint] - 1][0].append(joint)
-            levels[depth[joint] - 1][1].append(parent)
-    return [j for j, p in enumerate(parents) if p < 0], levels
 
 
 def topological_order(parents: list[int]) -> list[int]:

@@ -29,7 +29,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, AnyStr
 
 import numpy as np
 
@@ -56,6 +56,11 @@ _ROTATION = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
 _MOTION = re.compile(r"^[ \t]*MOTION[ \t]*\r?$", re.MULTILINE | re.IGNORECASE)
 _FRAME_TIME = re.compile(r"^[ \t]*Frame[ \t]*Time[ \t]*:[^\n]*", re.MULTILINE | re.IGNORECASE)
 _FRAMES = re.compile(r"^[ \t]*Frames[ \t]*:[^\n]*", re.MULTILINE | re.IGNORECASE)
+_MOTION_BYTES, _FRAME_TIME_BYTES, _FRAMES_BYTES = (
+    re.compile(pattern.pattern.encode(), pattern.flags & ~re.UNICODE)
+    for pattern in (_MOTION, _FRAME_TIME, _FRAMES)
+)
+_STR_SPACE = frozenset(c for c in range(128) if chr(c).isspace())  # what `str.strip` strips, in ASCII
 # Unwrapped angles of a long take can pass a few thousand degrees; a million is corrupt data.
 _MAX_ANGLE = 1e6
 _REEXPORT = "re-export the clip as BVH from the DCC or mocap software"
@@ -94,14 +99,21 @@ class BvhHeader:
 
 def read(path: Path) -> list[Clip]:
     raw = _raw(path)
-    text = _without_provenance(raw.decode("utf-8", errors="replace"))
-    # Split only the header into lines; the MOTION numbers go to a C parser as one block.
-    header, head_end = _split_header(text, path)
-    data_start = text.count("\n", 0, head_end) + 1  # the 1-based line that `data` begins on
-    # ASCII (nearly every BVH): offsets in the text are offsets in the bytes, so the C CSV parser
-    # reads the file's own buffer without a copy.
-    block = memoryview(raw)[head_end : len(text)] if raw.isascii() else text[head_end:].encode()
-    by_channel = _motion(text[head_end:], block, data_start, header, path)
+    if raw.isascii():
+        # Nearly every BVH: located in the bytes, only the header decoded, and the C CSV parser
+        # reads the MOTION block in the file's own buffer (fresh pages cost more than parsing).
+        end = _content_end(raw)
+        head_end = _head_end(raw, end, _MOTION_BYTES, _FRAME_TIME_BYTES, _FRAMES_BYTES)
+        header = parse_header(raw[:head_end].decode("ascii").split("\n"), path)
+        data_start = raw.count(b"\n", 0, head_end) + 1  # the 1-based line that the block begins on
+        block: bytes | memoryview = memoryview(raw)[head_end:end]
+    else:
+        # A generated clip's provenance is a comment after the last frame; it is not motion data.
+        text = _without_provenance(raw.decode("utf-8", errors="replace"))
+        header, head_end = _split_header(text, path)
+        data_start = text.count("\n", 0, head_end) + 1
+        block = text[head_end:].encode()
+    by_channel = _motion(block, data_start, header, path)
     return [_clip(path, header, by_channel)]
 
 
@@ -120,26 +132,48 @@ def _without_provenance(text: str) -> str:
     return text if kept is tail else text[: line_start - 1 + len(kept)]
 
 
+def _content_end(raw: bytes) -> int:
+    """`_without_provenance` on ASCII bytes: the length of the text without its provenance line."""
+    end = len(raw)
+    while end and raw[end - 1] in _STR_SPACE:
+        end -= 1
+    line_start = raw.rfind(b"\n", 0, end) + 1
+    if line_start == 0:
+        return len(strip_bvh_provenance(raw.decode("ascii")))
+    return line_start - 1 + len(strip_bvh_provenance(raw[line_start - 1 :].decode("ascii")))
+
+
 def read_header(path: Path) -> BvhHeader:
     """Only the HIERARCHY and the MOTION header (what a writer needs from a template)."""
     return _split_header(_text(path), path)[0]
 
 
 def _split_header(text: str, path: Path) -> tuple[BvhHeader, int]:
-    """The parsed header and the offset in ``text`` where the frame numbers start.
+    """The parsed header and the offset in ``text`` where the frame numbers start."""
+    head_end = _head_end(text, len(text), _MOTION, _FRAME_TIME, _FRAMES)
+    return parse_header(text[:head_end].split("\n"), path), head_end
+
+
+def _head_end(
+    text: AnyStr,
+    end: int,
+    motion: re.Pattern[AnyStr],
+    frame_time: re.Pattern[AnyStr],
+    frames: re.Pattern[AnyStr],
+) -> int:
+    """Where the frame numbers start in ``text[:end]`` (str, or ASCII bytes: the same offsets).
 
     The header ends after whichever of the "Frames:" and "Frame Time:" lines comes last.
     Lines are counted on "\n" alone (CRLF ends with it too), the same count the motion
     block uses, so every reported line number is the one an editor shows.
     """
-    motion = _MOTION.search(text)
-    head_end = len(text)
-    if motion:
-        frame_time = _FRAME_TIME.search(text, motion.end())
-        frames = _FRAMES.search(text, motion.end())
-        if frame_time and frames:
-            head_end = max(frame_time.end(), frames.end())
-    return parse_header(text[:head_end].split("\n"), path), head_end
+    found = motion.search(text, 0, end)
+    if found:
+        time_line = frame_time.search(text, found.end(), end)
+        frames_line = frames.search(text, found.end(), end)
+        if time_line and frames_line:
+            return max(time_line.end(), frames_line.end())
+    return end
 
 
 def _text(path: Path) -> str:
@@ -357,15 +391,12 @@ def _motion_header(lines: list[str], index: int, header: BvhHeader, path: Path) 
         )
 
 
-def _motion(
-    data: str, block: bytes | memoryview, data_start: int, header: BvhHeader, path: Path
-) -> FloatArray:
+def _motion(block: bytes | memoryview, data_start: int, header: BvhHeader, path: Path) -> FloatArray:
     """(channels, frames) values, channel-major (what the Euler conversion reads row by row).
 
-    ``data`` (and its bytes, ``block``) starts at the end of the last MOTION header line, which is
-    line ``data_start``. The two C parsers are tried in turn (see the module docstring); only a
-    wrong count, a token they cannot read or a NaN/inf sends the reader line by line to name the
-    culprit.
+    ``block`` (UTF-8) starts at the end of the last MOTION header line, which is line
+    ``data_start``. The C parsers are tried in turn (see the module docstring); only a wrong
+    count, a token they cannot read or a NaN/inf sends the reader line by line to name the culprit.
     """
     global _parsed_bytes
     channels = header.channel_count
@@ -380,6 +411,7 @@ def _motion(
     csv = _arrow_csv() if _parsed_bytes > ARROW_AFTER_BYTES or "pyarrow.csv" in sys.modules else None
     by_channel = None if csv is None else _motion_arrow(csv, block, header.frames, channels)
     if by_channel is None:
+        data = bytes(block).decode("utf-8", errors="replace")
         with warnings.catch_warnings():
             # Older numpy warns (DeprecationWarning) instead of raising on a token it cannot parse.
             warnings.simplefilter("error", DeprecationWarning)
@@ -390,7 +422,7 @@ def _motion(
         if not (values.size == header.frames * channels and np.isfinite(values).all()):
             values = _motion_slow(data.split("\n"), data_start, header, path)
         by_channel = np.ascontiguousarray(values.reshape(header.frames, channels).T)
-    _check_magnitudes(by_channel.T, header, data_start, path)
+    _check_magnitudes(by_channel, header, data_start, path)
     return by_channel
 
 
@@ -447,24 +479,29 @@ def _motion_arrow(
     return by_channel
 
 
-def _check_magnitudes(values: FloatArray, header: BvhHeader, data_start: int, path: Path) -> None:
+def _check_magnitudes(by_channel: FloatArray, header: BvhHeader, data_start: int, path: Path) -> None:
     """Angles beyond `_MAX_ANGLE` degrees and positions beyond `MAX_TRANSLATION` are corrupt data:
-    finite, but sine and cosine of 1e308 mean nothing and positions that big overflow FK."""
+    finite, but sine and cosine of 1e308 mean nothing and positions that big overflow FK.
+
+    ``by_channel`` is (channels, frames); the error names the first bad value in file order."""
     rotation = np.array(
         [name.lower() in _ROTATION for joint in header.joints for name in joint.channels], dtype=bool
     )
     limits = np.where(rotation, _MAX_ANGLE, MAX_TRANSLATION)
+    # Per-channel extremes first: no (channels, frames) temporaries on the path every clip takes.
+    if not ((by_channel.max(axis=1) > limits) | (by_channel.min(axis=1) < -limits)).any():
+        return
+    values = by_channel.T
     over = np.abs(values) > limits
-    if over.any():
-        frame, column = (int(i) for i in np.argwhere(over)[0])
-        kind = "rotation" if rotation[column] else "position"
-        raise ClipReadError(
-            f"frame {frame}, channel {column + 1}: {kind} {values[frame, column]:.6g} is out of range "
-            f"(|value| <= {limits[column]:g})",
-            path=path,
-            line=data_start + 1 + frame,
-            hint="such a value is corrupt data; " + _REEXPORT,
-        )
+    frame, column = (int(i) for i in np.argwhere(over)[0])
+    kind = "rotation" if rotation[column] else "position"
+    raise ClipReadError(
+        f"frame {frame}, channel {column + 1}: {kind} {values[frame, column]:.6g} is out of range "
+        f"(|value| <= {limits[column]:g})",
+        path=path,
+        line=data_start + 1 + frame,
+        hint="such a value is corrupt data; " + _REEXPORT,
+    )
 
 
 def _motion_slow(lines: list[str], data_start: int, header: BvhHeader, path: Path) -> FloatArray:
@@ -551,14 +588,24 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
                 rotation_columns.append(column)
             column += 1
         by_order.setdefault(order, []).append((index, rotation_columns))
+    # A channel that never moves (a rig's fingers, a mocap knee's twist: 50 of a procedural walk's
+    # 60 channels, a quarter of a CMU take's) is converted once; so is a joint none of whose
+    # channels moves, its quaternion repeated on every frame.
+    still = (by_channel == by_channel[:, :1]).all(axis=1)
     for order, members in by_order.items():
-        indices = [m[0] for m in members]
+        indices = np.array([m[0] for m in members])
         if not order:
             rotations[:, indices] = quat.IDENTITY
             continue
-        # (letters, joints, frames), contiguous: one block of angles per letter of the order.
-        angles = by_channel[np.array([m[1] for m in members]).T]
-        rotations[:, indices] = euler_quaternions(angles, order).T
+        columns = np.array([m[1] for m in members]).T  # (letters, joints)
+        fixed = still[columns].all(axis=0)
+        if fixed.any():
+            first = by_channel[columns[:, fixed], :1]  # (letters, joints, 1)
+            rotations[:, indices[fixed]] = euler_quaternions(first, order)[..., 0].T
+        if not fixed.all():
+            # (letters, joints, frames), contiguous: one block of angles per letter of the order.
+            angles = by_channel[columns[:, ~fixed]]
+            rotations[:, indices[~fixed]] = euler_quaternions(angles, order).T
     skeleton = Skeleton(
         names=tuple(j.name for j in joints),
         parents=tuple(j.parent for j in joints),
@@ -582,25 +629,10 @@ def euler_quaternions(angles_deg: FloatArray, order: str) -> FloatArray:
     Same convention (intrinsic, ``R = R[order[0]] * R[order[1]] * ...``), but each step multiplies
     by a one-axis quaternion in closed form on whole contiguous rows, so reading a BVH costs about
     one sine and one cosine per angle; the general Hamilton product was a third of read time.
-    A joint none of whose angles moves over the last axis (frames) is converted once.
     """
-    angles = np.asarray(angles_deg, dtype=np.float64)
-    if angles.ndim < 3 or angles.shape[-1] < 2:
-        return _compose(angles, order)
-    still = (angles == angles[..., :1]).all(axis=-1).all(axis=0)  # (joints...,)
-    if not still.any():
-        return _compose(angles, order)
-    q = np.empty((4, *angles.shape[1:]))
-    q[:, still] = _compose(angles[:, still, :1], order)  # broadcast over the frames
-    moving = ~still
-    if moving.any():
-        q[:, moving] = _compose(angles[:, moving], order)
-    return q
-
-
-def _compose(angles_deg: FloatArray, order: str) -> FloatArray:
-    """(4, ...) quaternions of the intrinsic rotations ``angles_deg`` (len(order), ...)."""
-    sines, cosines = _half_angle_sines(angles_deg)
+    sines, cosines = _half_angle_sines(np.asarray(angles_deg, dtype=np.float64))
+    # Written into preallocated rows (`out=`): the same products and sums, without a fresh
+    # temporary per term (fresh pages cost as much as the arithmetic on a 0.5 MB take).
     q = np.empty((4, *sines.shape[1:]))
     first = "XYZ".index(order[0].upper())
     if len(order) > 1 and order[1].upper() != order[0].upper():
@@ -609,43 +641,50 @@ def _compose(angles_deg: FloatArray, order: str) -> FloatArray:
         k = "XYZ".index(order[1].upper())
         i, j = (k + 1) % 3, (k + 2) % 3
         s0, c0, s1, c1 = sines[0], cosines[0], sines[1], cosines[1]
-        q[k] = s1 * c0
-        q[3] = c1 * c0
+        np.multiply(s1, c0, out=q[k])
+        np.multiply(c1, c0, out=q[3])
         if first == i:
-            q[i], q[j] = c1 * s0, -(s1 * s0)
+            np.multiply(c1, s0, out=q[i])
+            np.negative(np.multiply(s1, s0, out=q[j]), out=q[j])
         else:
-            q[i], q[j] = s1 * s0, c1 * s0
+            np.multiply(s1, s0, out=q[i])
+            np.multiply(c1, s0, out=q[j])
         start = 2
     else:
         q[:3] = 0.0
         q[first], q[3] = sines[0], cosines[0]
         start = 1
+    if start < len(order):
+        step, term = np.empty_like(q), np.empty_like(q[0])
     for row in range(start, len(order)):
         # q * (s e_k + c): with (k, i, j) cyclic, the k, i, j and w parts below.
         k = "XYZ".index(order[row].upper())
         i, j = (k + 1) % 3, (k + 2) % 3
         s, c = sines[row], cosines[row]
-        step = np.empty_like(q)
-        step[k] = c * q[k] + s * q[3]
-        step[i] = c * q[i] + s * q[j]
-        step[j] = c * q[j] - s * q[i]
-        step[3] = c * q[3] - s * q[k]
-        q = step
+        for part, (first_term, second_term, sign) in (
+            (k, (k, 3, 1)),
+            (i, (i, j, 1)),
+            (j, (j, i, -1)),
+            (3, (3, k, -1)),
+        ):
+            np.multiply(c, q[first_term], out=step[part])  # c q[.] +/- s q[.]
+            np.multiply(s, q[second_term], out=term)
+            (np.add if sign > 0 else np.subtract)(step[part], term, out=step[part])
+        q, step = step, q
     return q
 
 
 def _half_angle_sines(angles_deg: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Sine and cosine of half of every angle (degrees), each taken once per constant channel.
-
-    Sine and cosine are nearly all of the conversion's cost, and many channels never move (a
-    synthetic rig's fingers, the zero twist of a mocap knee: 50 of 60 channels of a procedural
-    walk, a quarter of a CMU take's): their one value is converted once and repeated.
-    """
+    """Sine and cosine of half of every angle (degrees); a row constant along the last axis (a
+    channel that never moves) costs one sine and one cosine, the bulk of the conversion's time."""
     if angles_deg.ndim < 2 or angles_deg.shape[-1] < 2:
         half = np.radians(angles_deg) * 0.5
         return np.sin(half), np.cos(half)
     rows = angles_deg.reshape(-1, angles_deg.shape[-1])
     still = (rows == rows[:, :1]).all(axis=1)
+    if not still.any():
+        half = np.radians(angles_deg) * 0.5
+        return np.sin(half), np.cos(half)
     sines, cosines = np.empty_like(rows), np.empty_like(rows)
     moving = ~still
     half = np.radians(rows[moving]) * 0.5
