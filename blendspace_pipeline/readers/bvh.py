@@ -29,7 +29,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, AnyStr
+from typing import TYPE_CHECKING, Any, AnyStr
 
 import numpy as np
 
@@ -451,6 +451,13 @@ def _motion_arrow(
     first = bytes(block[:4096]).lstrip(b"\r\n").split(b"\n", 1)[0].rstrip(b"\r")
     delimiter = "\t" if b"\t" in first and b" " not in first else " "
     trailing = first.endswith(delimiter.encode())
+    # Blank lines after the last frame hold no value (but keep that frame's trailing delimiter).
+    end = len(block)
+    while end and block[end - 1] in b" \t\r\n":
+        end -= 1
+    if trailing and end < len(block) and block[end] == ord(delimiter):
+        end += 1
+    block = block[:end]
     names = [f"c{index}" for index in range(channels + trailing)]
     types = {name: pa.float64() for name in names[:channels]}
     if trailing:
@@ -469,7 +476,7 @@ def _motion_arrow(
         return None
     if table.num_rows != frames or table.num_columns != len(names):
         return None
-    if trailing and any(c.offsets[-1].as_py() != c.offsets[0].as_py() for c in table.column(channels).chunks):
+    if trailing and not all(_all_empty(chunk) for chunk in table.column(channels).chunks):
         return None  # a value after what the first line left empty: one value too many
     by_channel = np.empty((channels, frames))
     for index in range(channels):
@@ -477,6 +484,12 @@ def _motion_arrow(
     if not np.isfinite(by_channel).all():
         return None  # the slow path names the line with the NaN or inf
     return by_channel
+
+
+def _all_empty(strings: Any) -> bool:
+    """Whether every value of a pyarrow string array is "" (its first and last offsets agree)."""
+    offsets = np.frombuffer(strings.buffers()[1], dtype=np.int32)
+    return bool(offsets[strings.offset] == offsets[strings.offset + len(strings)])
 
 
 def _check_magnitudes(by_channel: FloatArray, header: BvhHeader, data_start: int, path: Path) -> None:
