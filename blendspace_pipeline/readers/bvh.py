@@ -98,6 +98,12 @@ class BvhHeader:
 
 
 def read(path: Path) -> list[Clip]:
+    header, by_channel = parse(path)
+    return [_clip(path, header, by_channel)]
+
+
+def parse(path: Path) -> tuple[BvhHeader, FloatArray]:
+    """The header and the MOTION values, (channels, frames): the text parsed, not yet a `Clip`."""
     raw = _raw(path)
     if raw.isascii():
         # Nearly every BVH: located in the bytes, only the header decoded, and the C CSV parser
@@ -113,8 +119,7 @@ def read(path: Path) -> list[Clip]:
         header, head_end = _split_header(text, path)
         data_start = text.count("\n", 0, head_end) + 1
         block = text[head_end:].encode()
-    by_channel = _motion(block, data_start, header, path)
-    return [_clip(path, header, by_channel)]
+    return header, _motion(block, data_start, header, path)
 
 
 def _without_provenance(text: str) -> str:
