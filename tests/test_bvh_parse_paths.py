@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from hypothesis import strategies as st
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
-from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import bvh
 from blendspace_pipeline.readers.limits import read_regular_file
@@ -419,3 +420,46 @@ def test_read_regular_file_reads_all_and_keeps_its_limit(tmp_path: Path) -> None
     assert read_regular_file(empty) == b""
     with pytest.raises(ClipReadError, match="more than the limit"):
         read_regular_file(path, limit=1000)
+
+
+def _fk_before(clip: Clip) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics as it was: `quaternions.multiply` and `rotate` joint by joint."""
+    skeleton = clip.skeleton
+    world_rot, world_pos = np.empty_like(clip.rotations), np.empty_like(clip.translations)
+    for joint, parent in enumerate(skeleton.parents):
+        if parent < 0 or not skeleton.has_hierarchy:
+            world_rot[:, joint], world_pos[:, joint] = clip.rotations[:, joint], clip.translations[:, joint]
+            continue
+        world_rot[:, joint] = quat.multiply(world_rot[:, parent], clip.rotations[:, joint])
+        world_pos[:, joint] = world_pos[:, parent] + quat.rotate(
+            world_rot[:, parent], clip.translations[:, joint]
+        )
+    return world_rot, world_pos
+
+
+def test_forward_kinematics_is_the_joint_by_joint_composition_to_the_bit(tmp_path: Path) -> None:
+    clips = [bvh.read(shared_data("cmu", "131_01.bvh"))[0]]
+    clips.append(generate(GaitSpec("turn", speed=1.1, turn_rate=40.0, duration=0.5, fps=30.0)))
+    two_roots = _file(tmp_path, _format(_values(6), ".6f"))
+    two_roots.write_bytes(
+        two_roots.read_bytes()
+        .replace(b"JOINT Spine", b"}\nROOT Spine", 1)
+        .replace(b"}\n}\nMOTION", b"}\nMOTION")
+    )
+    clips.append(bvh.read(two_roots)[0])
+    assert clips[-1].skeleton.parents == (-1, -1)
+    flat = clips[0]
+    clips.append(
+        Clip(
+            flat.name,
+            flat.source,
+            replace(flat.skeleton, has_hierarchy=False),
+            flat.rotations,
+            flat.translations,
+            flat.fps,
+        )
+    )
+    for clip in clips:
+        fast, before = forward_kinematics(clip), _fk_before(clip)
+        assert fast[0].tobytes() == before[0].tobytes()
+        assert fast[1].tobytes() == before[1].tobytes()
