@@ -15,7 +15,6 @@ from typing import Literal
 import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
-from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 UpAxis = Literal["y", "z"]
@@ -136,7 +135,11 @@ def validate_clip(clip: Clip) -> Clip:
 def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
     """World rotations (F, J, 4) and positions (F, J, 3) of every joint on every frame.
 
-    Vectorised over frames: one numpy operation per joint, parents first.
+    Vectorised over frames: one numpy operation per term, joint by joint, parents first. The
+    terms are `quaternions.multiply` and `quaternions.rotate`'s, in their order (so the result is
+    the same to the bit), written straight into the output columns: stacking each product and
+    copying it in cost a third of the time. (Grouping the joints of a level, or component-major
+    copies, measured no faster: the arithmetic, not the call count, is the floor.)
     """
     skeleton = clip.skeleton
     world_rot = np.empty_like(clip.rotations)
@@ -146,9 +149,20 @@ def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
             world_rot[:, joint] = clip.rotations[:, joint]
             world_pos[:, joint] = clip.translations[:, joint]
             continue
-        parent_rot = world_rot[:, parent]
-        world_rot[:, joint] = quat.multiply(parent_rot, clip.rotations[:, joint])
-        world_pos[:, joint] = world_pos[:, parent] + quat.rotate(parent_rot, clip.translations[:, joint])
+        ax, ay, az, aw = (world_rot[:, parent, k] for k in range(4))
+        bx, by, bz, bw = (clip.rotations[:, joint, k] for k in range(4))
+        rot = world_rot[:, joint]
+        rot[:, 0] = aw * bx + ax * bw + ay * bz - az * by
+        rot[:, 1] = aw * by - ax * bz + ay * bw + az * bx
+        rot[:, 2] = aw * bz + ax * by - ay * bx + az * bw
+        rot[:, 3] = aw * bw - ax * bx - ay * by - az * bz
+        # rotate(parent, offset) = v + w t + u x t with t = 2 (u x v), u = parent's vector part.
+        vx, vy, vz = (clip.translations[:, joint, k] for k in range(3))
+        tx, ty, tz = 2.0 * (ay * vz - az * vy), 2.0 * (az * vx - ax * vz), 2.0 * (ax * vy - ay * vx)
+        pos, base = world_pos[:, joint], world_pos[:, parent]
+        pos[:, 0] = base[:, 0] + (vx + aw * tx + (ay * tz - az * ty))
+        pos[:, 1] = base[:, 1] + (vy + aw * ty + (az * tx - ax * tz))
+        pos[:, 2] = base[:, 2] + (vz + aw * tz + (ax * ty - ay * tx))
     return world_rot, world_pos
 
 

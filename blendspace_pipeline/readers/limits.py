@@ -71,7 +71,11 @@ def read_regular_file(path: Path, *, what: str = "file", limit: int = MAX_FILE_B
             )
         with os.fdopen(handle, "rb", closefd=True) as stream:
             handle = -1
-            data = stream.read(limit + 1)
+            # Ask for the size fstat saw (+1 to notice growth): `read(limit + 1)` allocated a
+            # 2 GiB buffer per call, 0.8 ms, more than reading a 0.5 MB take from the page cache.
+            data = stream.read(min(info.st_size, limit) + 1)
+            if len(data) > info.st_size:  # the file grew since fstat: read on up to the limit
+                data += stream.read(limit + 1 - len(data))
     except OSError as error:
         raise ClipReadError(
             f"cannot read the {what}: {error.strerror or error}", path=path, hint="check the path"
