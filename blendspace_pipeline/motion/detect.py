@@ -7,8 +7,9 @@ can report what was used, and every automatic guess can be overridden in the man
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
+from typing import TypeVar, cast
 
 import numpy as np
 
@@ -94,6 +95,39 @@ class Facing:
     guess: DetectionGuess | None = None
 
 
+_T = TypeVar("_T")
+# Answers that depend on the rig alone (joint names, hierarchy, the manifest's hip names), never on
+# the motion: measuring one clip asks for them a dozen times, and a library shares a few rigs.
+_RIG_MEMO: dict[Hashable, object] = {}
+_RIG_MEMO_SIZE = 4096
+
+
+def rig_memo(kind: str, clip: Clip, settings: RigSettings, compute: Callable[[], _T], *extra: Hashable) -> _T:
+    """``compute()``, remembered per rig: joint names, parents, whether there is a hierarchy, the
+    manifest's hip names and ``extra`` (whatever else the answer depends on). A ``compute`` that
+    raises (a joint the manifest names is missing) is not remembered: the next clip raises too,
+    with its own name in the message."""
+    skeleton = clip.skeleton
+    key = (
+        kind,
+        tuple(skeleton.names),
+        tuple(skeleton.parents),
+        skeleton.has_hierarchy,
+        settings.left_hip,
+        settings.right_hip,
+        *extra,
+    )
+    try:
+        return cast(_T, _RIG_MEMO[key])
+    except KeyError:
+        pass
+    value = compute()
+    if len(_RIG_MEMO) >= _RIG_MEMO_SIZE:
+        _RIG_MEMO.clear()
+    _RIG_MEMO[key] = value
+    return value
+
+
 def _joint(clip: Clip, name: str, what: str) -> int:
     try:
         return clip.skeleton.index(name)
@@ -111,6 +145,10 @@ def _joint(clip: Clip, name: str, what: str) -> int:
 
 
 def hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
+    return rig_memo("hip_pair", clip, settings, lambda: _hip_pair(clip, settings))
+
+
+def _hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     if settings.left_hip != "auto" and settings.right_hip != "auto":
         return _joint(clip, settings.left_hip, "left_hip"), _joint(clip, settings.right_hip, "right_hip")
     if not clip.skeleton.has_hierarchy:
@@ -182,6 +220,10 @@ class BodyJoints:
 
 
 def body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
+    return rig_memo("body_joints", clip, settings, lambda: _body_joints(clip, settings))
+
+
+def _body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
     if not clip.skeleton.has_hierarchy:
         return None
     hips = hip_pair(clip, settings)
@@ -463,6 +505,12 @@ def _unit_from_length(
     )
 
 
+def _pose_joints(clip: Clip, body: BodyJoints | None) -> list[int] | None:
+    """The pelvis (the hips' lowest common ancestor) and every joint below it, or None."""
+    pelvis = _lowest_common_ancestor(clip, *body.hips) if body is not None else None
+    return None if pelvis is None else [pelvis, *clip.skeleton.descendants(pelvis)]
+
+
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:
     """True when the first frame should be dropped as a rest/T-pose frame.
 
@@ -477,9 +525,8 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     if not clip.skeleton.has_hierarchy:
         return False
     body = body_joints(clip, settings)
-    pelvis = _lowest_common_ancestor(clip, *body.hips) if body is not None else None
-    if body is not None and pelvis is not None:
-        joints = [pelvis, *clip.skeleton.descendants(pelvis)]
+    joints = rig_memo("pose_joints", clip, settings, lambda: _pose_joints(clip, body))
+    if body is not None and joints is not None:
         anchor = 0.5 * (world_pos[:, body.hips[0]] + world_pos[:, body.hips[1]])
         local = world_pos[:, joints] - anchor[:, None]
     else:

@@ -19,7 +19,7 @@ import numpy as np
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
-from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
+from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal
 from blendspace_pipeline.motion.clip_ops.sway import stride_starts, sway_free
 from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
@@ -183,9 +183,13 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     positions = root.positions(world_pos) @ ground.T * meters_per_unit  # (F, 2) metres
     forward = facing.vectors(world_rot, world_pos) @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
-    cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
+    posed = (world_rot, world_pos)  # this FK is reused below, not computed again
+    # The foot signal the gait cycle and the sway removal both read, computed once. On the whole
+    # clip its up axis is the one found above; a range reads its own (as `foot_signal` would).
+    signal = foot_signal(used, settings, posed, up_axis=up_axis if used is clip else None)
+    cycle = detect_cycle(used, settings, posed, signal=signal)
     # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
-    heading = sway_free(heading, used, settings, (world_rot, world_pos), cycle, positions)
+    heading = sway_free(heading, used, settings, posed, cycle, positions, signal=signal)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     contacts = clip_contacts(used, settings, world_pos, meters_per_unit=meters_per_unit, up_axis=up_axis)

@@ -16,11 +16,19 @@ cadence drifts stay in step.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.detect import RigSettings, hip_pair, resolve_facing, resolve_up, up_vector
+from blendspace_pipeline.motion.detect import (
+    RigSettings,
+    hip_pair,
+    resolve_facing,
+    resolve_up,
+    rig_memo,
+    up_vector,
+)
 from blendspace_pipeline.motion.joint_names import split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -60,6 +68,16 @@ class GaitCycle:
 def foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     """(left, right) foot joints: below the hips `detect` finds, the first joint named foot or
     ankle, else the joint of the leg farthest from the hip in the rest pose."""
+    skeleton = clip.skeleton
+    # Remembered per rig; the rest pose is part of the key for rigs without a named foot.
+    rest = tuple(
+        np.asarray(a, dtype=np.float64).tobytes()
+        for a in (skeleton.rest_translations, skeleton.rest_rotations)
+    )
+    return rig_memo("foot_joints", clip, settings, lambda: _foot_joints(clip, settings), *rest)
+
+
+def _foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
     if hips is None:
         return None
@@ -94,21 +112,27 @@ def _rest_positions(clip: Clip) -> FloatArray:
 
 
 Posed = tuple[FloatArray, FloatArray]  # (world rotations, world positions) of every frame
+# `foot_signal`'s answer: (signal, mean leg length, (left foot, right foot)), or None.
+FootSignal = tuple[FloatArray, float, tuple[int, int]] | None
+# Passed for a `FootSignal` argument when the callee is to compute it itself.
+COMPUTE: Literal["compute"] = "compute"
 
 
 def foot_signal(
-    clip: Clip, settings: RigSettings, posed: Posed | None = None
-) -> tuple[FloatArray, float, tuple[int, int]] | None:
+    clip: Clip, settings: RigSettings, posed: Posed | None = None, *, up_axis: str | None = None
+) -> FootSignal:
     """(left foot minus right foot along the facing on every frame, mean leg length, feet); file units.
 
-    ``posed`` is the clip's forward kinematics when the caller has it already (`measure` does).
+    ``posed`` is the clip's forward kinematics when the caller has it already (`measure` does),
+    ``up_axis`` what `detect.resolve_up` reads from it when the caller knows that too.
     """
     feet = foot_joints(clip, settings)
     hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
     if feet is None or hips is None:
         return None
     world_rot, world_pos = posed if posed is not None else forward_kinematics(clip)
-    up_axis, _ = resolve_up(clip, world_pos, settings)
+    if up_axis is None:
+        up_axis, _ = resolve_up(clip, world_pos, settings)
     up = up_vector(up_axis)  # any signed axis: -Y and -Z up too
     forward = resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos)
     forward = forward - (forward @ up)[:, None] * up
@@ -287,12 +311,19 @@ def _loop_length(signal: FloatArray, fps: float, amplitude: float) -> tuple[floa
     return frames / fps, True
 
 
-def detect_cycle(clip: Clip, settings: RigSettings, posed: Posed | None = None) -> GaitCycle | None:
+def detect_cycle(
+    clip: Clip,
+    settings: RigSettings,
+    posed: Posed | None = None,
+    *,
+    signal: FootSignal | Literal["compute"] = COMPUTE,
+) -> GaitCycle | None:
     """The clip's stride, or None when it has no clear one (idle, turn on the spot, a shuffle
-    shorter than a stride, a rig without recognisable legs). ``posed``: see `foot_signal`."""
+    shorter than a stride, a rig without recognisable legs). ``posed``: see `foot_signal`;
+    ``signal``: `foot_signal`'s answer for ``clip`` when the caller has it (`measure` does)."""
     if clip.frame_count < 8:
         return None
-    found = foot_signal(clip, settings, posed)
+    found = foot_signal(clip, settings, posed) if signal == COMPUTE else signal
     if found is None:
         return None
     signal, leg, feet = found

@@ -13,7 +13,13 @@ from typing import Literal
 import numpy as np
 
 from blendspace_pipeline.motion.clip import Clip
-from blendspace_pipeline.motion.clip_ops.phase import GaitCycle, detect_cycle, foot_signal
+from blendspace_pipeline.motion.clip_ops.phase import (
+    COMPUTE,
+    FootSignal,
+    GaitCycle,
+    detect_cycle,
+    foot_signal,
+)
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -25,18 +31,21 @@ def sway_free(
     posed: tuple[FloatArray, FloatArray],
     cycle: GaitCycle | Literal["detect"] | None = "detect",
     positions: FloatArray | None = None,
+    *,
+    signal: FootSignal | Literal["compute"] = COMPUTE,
 ) -> FloatArray:
     """The hip-line ``heading`` (radians, per frame) of ``clip`` without the pelvis sway.
 
     ``posed`` is the clip's forward kinematics, ``cycle`` its `detect_cycle` when the caller has
     it ("detect": find it here when the strides alone do not tell the period), ``positions`` the root's ground path (any unit) for the fallback's standing ends. With a
     stride to go by, the sway is taken out by `remove_stride_sway`; without one the heading is
-    returned as it is (no gait, no stride-tied sway).
+    returned as it is (no gait, no stride-tied sway). ``signal``: `phase.foot_signal`'s answer for
+    ``clip`` when the caller has it.
     """
-    strides = stride_starts(clip, settings, posed)
+    strides = stride_starts(clip, settings, posed, signal=signal)
     if cycle == "detect":
         few = strides is None or len(strides[0]) < 3
-        cycle = detect_cycle(clip, settings, posed) if few else None
+        cycle = detect_cycle(clip, settings, posed, signal=signal) if few else None
     period = _sway_period(strides[0] if strides is not None else None, cycle, clip.fps)
     if period is None:
         return heading
@@ -208,12 +217,16 @@ _STRIDE_SPREAD = 0.35
 
 
 def stride_starts(
-    clip: Clip, settings: RigSettings, posed: tuple[FloatArray, FloatArray]
+    clip: Clip,
+    settings: RigSettings,
+    posed: tuple[FloatArray, FloatArray],
+    *,
+    signal: FootSignal | Literal["compute"] = COMPUTE,
 ) -> tuple[FloatArray, FloatArray] | None:
     """(fractional frames where the left foot passes the right one going forward along the
     hip-line facing, one per stride; the foot signal centred on its median). None for a rig
-    without recognisable legs."""
-    found = foot_signal(clip, settings, posed)
+    without recognisable legs. ``signal``: `phase.foot_signal`'s answer when the caller has it."""
+    found = foot_signal(clip, settings, posed) if signal == COMPUTE else signal
     if found is None:
         return None
     signal = found[0]
