@@ -186,10 +186,10 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     posed = (world_rot, world_pos)  # this FK is reused below, not computed again
     # The foot signal the gait cycle and the sway removal both read, computed once. On the whole
     # clip its up axis is the one found above; a range reads its own (as `foot_signal` would).
-    signal = foot_signal(used, settings, posed, up_axis=up_axis if used is clip else None)
-    cycle = detect_cycle(used, settings, posed, signal=signal)
+    found = foot_signal(used, settings, posed, up_axis=up_axis if used is clip else None)
+    cycle = detect_cycle(used, settings, posed, found=found)
     # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
-    heading = sway_free(heading, used, settings, posed, cycle, positions, signal=signal)
+    heading = sway_free(heading, used, settings, posed, cycle, positions, found=found)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     contacts = clip_contacts(used, settings, world_pos, meters_per_unit=meters_per_unit, up_axis=up_axis)

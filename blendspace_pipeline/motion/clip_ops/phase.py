@@ -316,14 +316,15 @@ def detect_cycle(
     settings: RigSettings,
     posed: Posed | None = None,
     *,
-    signal: FootSignal | Literal["compute"] = COMPUTE,
+    found: FootSignal | Literal["compute"] = COMPUTE,
 ) -> GaitCycle | None:
     """The clip's stride, or None when it has no clear one (idle, turn on the spot, a shuffle
     shorter than a stride, a rig without recognisable legs). ``posed``: see `foot_signal`;
-    ``signal``: `foot_signal`'s answer for ``clip`` when the caller has it (`measure` does)."""
+    ``found``: `foot_signal`'s answer for ``clip`` when the caller has it (`measure` does)."""
     if clip.frame_count < 8:
         return None
-    found = foot_signal(clip, settings, posed) if signal == COMPUTE else signal
+    if isinstance(found, str):
+        found = foot_signal(clip, settings, posed)
     if found is None:
         return None
     signal, leg, feet = found

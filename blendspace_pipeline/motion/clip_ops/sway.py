@@ -32,20 +32,20 @@ def sway_free(
     cycle: GaitCycle | Literal["detect"] | None = "detect",
     positions: FloatArray | None = None,
     *,
-    signal: FootSignal | Literal["compute"] = COMPUTE,
+    found: FootSignal | Literal["compute"] = COMPUTE,
 ) -> FloatArray:
     """The hip-line ``heading`` (radians, per frame) of ``clip`` without the pelvis sway.
 
     ``posed`` is the clip's forward kinematics, ``cycle`` its `detect_cycle` when the caller has
     it ("detect": find it here when the strides alone do not tell the period), ``positions`` the root's ground path (any unit) for the fallback's standing ends. With a
     stride to go by, the sway is taken out by `remove_stride_sway`; without one the heading is
-    returned as it is (no gait, no stride-tied sway). ``signal``: `phase.foot_signal`'s answer for
+    returned as it is (no gait, no stride-tied sway). ``found``: `phase.foot_signal`'s answer for
     ``clip`` when the caller has it.
     """
-    strides = stride_starts(clip, settings, posed, signal=signal)
+    strides = stride_starts(clip, settings, posed, found=found)
     if cycle == "detect":
         few = strides is None or len(strides[0]) < 3
-        cycle = detect_cycle(clip, settings, posed, signal=signal) if few else None
+        cycle = detect_cycle(clip, settings, posed, found=found) if few else None
     period = _sway_period(strides[0] if strides is not None else None, cycle, clip.fps)
     if period is None:
         return heading
@@ -221,12 +221,13 @@ def stride_starts(
     settings: RigSettings,
     posed: tuple[FloatArray, FloatArray],
     *,
-    signal: FootSignal | Literal["compute"] = COMPUTE,
+    found: FootSignal | Literal["compute"] = COMPUTE,
 ) -> tuple[FloatArray, FloatArray] | None:
     """(fractional frames where the left foot passes the right one going forward along the
     hip-line facing, one per stride; the foot signal centred on its median). None for a rig
-    without recognisable legs. ``signal``: `phase.foot_signal`'s answer when the caller has it."""
-    found = foot_signal(clip, settings, posed) if signal == COMPUTE else signal
+    without recognisable legs. ``found``: `phase.foot_signal`'s answer when the caller has it."""
+    if isinstance(found, str):
+        found = foot_signal(clip, settings, posed)
     if found is None:
         return None
     signal = found[0]
