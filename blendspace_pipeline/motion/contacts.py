@@ -116,15 +116,10 @@ def _ground_speed(track: FloatArray, fps: float, reach: int) -> FloatArray:
 def _intervals(mask: BoolArray, fps: float) -> list[tuple[float, float]]:
     """[start, end] seconds of runs of True, short gaps closed and short runs dropped."""
     frames = len(mask)
-    runs: list[list[int]] = []
-    start = None
-    for i in range(frames + 1):
-        on = bool(mask[i]) if i < frames else False
-        if on and start is None:
-            start = i
-        elif not on and start is not None:
-            runs.append([start, i - 1])
-            start = None
+    # Runs of True from the changes of the padded mask (vectorised: a loop over frames was slow).
+    edges = np.diff(np.concatenate([[0], np.asarray(mask, dtype=bool).astype(np.int8), [0]]))
+    firsts, lasts = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0] - 1
+    runs = [[first, last] for first, last in zip(firsts.tolist(), lasts.tolist(), strict=True)]
     shortest = _MIN_EVENT * fps
     merged: list[list[int]] = []
     for run in runs:
@@ -177,13 +172,24 @@ def detect_contacts(
 def _hysteresis(low: FloatArray, near: float, speed: FloatArray, limit: float) -> BoolArray:
     """Planted: enters when both height and speed are under their thresholds, leaves once either
     exceeds its threshold times `_RELEASE`."""
-    inside = np.zeros(len(low), dtype=bool)
+    enter = (low <= near) & (speed <= limit)
+    stay = (low <= near * _RELEASE) & (speed <= limit * _RELEASE)
+    if (enter & ~stay).any():  # only for negative thresholds, which no caller passes
+        return _hysteresis_loop(enter, stay)
+    # Vectorised (a loop over frames was slow): with every entry inside the stay set, a frame is
+    # planted when the last entry up to it comes after the last frame outside the stay set.
+    index = np.arange(len(low))
+    last_enter = np.maximum.accumulate(np.where(enter, index, -1))
+    last_leave = np.maximum.accumulate(np.where(stay, -1, index))
+    planted: BoolArray = (last_enter >= 0) & (last_enter > last_leave)
+    return planted
+
+
+def _hysteresis_loop(enter: BoolArray, stay: BoolArray) -> BoolArray:
+    inside = np.zeros(len(enter), dtype=bool)
     state = False
-    for i in range(len(low)):
-        if state:
-            state = bool(low[i] <= near * _RELEASE and speed[i] <= limit * _RELEASE)
-        else:
-            state = bool(low[i] <= near and speed[i] <= limit)
+    for i in range(len(enter)):
+        state = bool(stay[i]) if state else bool(enter[i])
         inside[i] = state
     return inside
 

@@ -240,15 +240,20 @@ def stride_starts(
 
 def _upward_crossings(signal: FloatArray, hysteresis: float) -> FloatArray:
     """Fractional frames where ``signal`` crosses zero going up after having been below
-    ``-hysteresis`` (wiggles smaller than that are not steps)."""
-    below = signal < -hysteresis
-    ups = []
-    armed = False
-    for i in range(1, len(signal)):
-        if below[i - 1]:
-            armed = True
-        a, b = float(signal[i - 1]), float(signal[i])
-        if armed and a < 0.0 <= b:
-            ups.append(i - 1 + a / (a - b) if a != b else float(i))
-            armed = False
-    return np.array(ups, dtype=np.float64)
+    ``-hysteresis`` (wiggles smaller than that are not steps).
+
+    Vectorised: a step from a negative frame to a non-negative one is a crossing when the signal
+    went below ``-hysteresis`` somewhere since the previous such step (or the start).
+    """
+    count = len(signal)
+    if count < 2:
+        return np.zeros(0)
+    a, b = signal[:-1], signal[1:]
+    steps = np.nonzero((a < 0.0) & (b >= 0.0))[0]  # step k: frame k to frame k + 1
+    below = np.concatenate([[0], np.cumsum(signal < -hysteresis)])  # below[k]: frames < k below
+    since = np.concatenate([[0], steps[:-1] + 1])  # the frame after the previous step's start
+    armed = steps[below[steps + 1] - below[since] > 0]
+    a, b = a[armed], b[armed]
+    same = a == b
+    ups: FloatArray = np.where(same, armed + 1.0, armed + a / np.where(same, -1.0, a - b))
+    return ups.astype(np.float64)
