@@ -185,3 +185,27 @@ def test_intervals_match_the_loop(fps: float) -> None:
         masks.append(rng.random(frames) < rng.uniform(0.1, 0.9))
     for mask in masks:
         assert contacts._intervals(mask, fps) == intervals_loop(mask, fps)
+
+
+def test_refinement_finds_the_exact_best_of_its_grid() -> None:
+    """`_best_on_grid` (chirp-z, then exact fits near its maximum) picks the frequency fitting
+    every grid point exactly picks, on noisy strides of real-take lengths and rates."""
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(30):
+        fps = float(rng.choice([30.0, 60.0, 120.0]))
+        frames = int(rng.integers(60, 1500))
+        times = np.arange(frames) / fps
+        stride = rng.uniform(0.6, 3.0)
+        drift = 1.0 + rng.uniform(-0.1, 0.1) * times / times[-1]  # a cadence that wanders
+        signal = np.sin(2.0 * np.pi * stride * drift * times) + rng.normal(0.0, rng.uniform(0.0, 0.8), frames)
+        duration = times[-1]
+        for centre in (stride, stride * rng.uniform(0.7, 1.3)):
+            step = 0.02 / duration
+            for _refinement in range(2):
+                grid = np.linspace(centre - step, centre + step, 41)
+                exact = phase._sinusoid_fit(signal, times, grid)
+                assert phase._best_on_grid(signal, times, grid, fps) == grid[int(np.argmax(exact))]
+                centre, step = float(grid[int(np.argmax(exact))]), float(grid[1] - grid[0])
+                checked += 1
+    assert checked == 120
