@@ -531,15 +531,15 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
         local = world_pos[:, joints] - anchor[:, None]
     else:
         local = world_pos - world_pos[:, :1]
-    change = np.linalg.norm(np.diff(local, axis=0), axis=2).mean(axis=1)
+    change = quat.vector_norm(np.diff(local, axis=0)).mean(axis=1)
     typical = float(np.median(change[1:]))
-    scale = float(np.linalg.norm(local[1], axis=1).max()) or 1.0
+    scale = float(quat.vector_norm(local[1]).max()) or 1.0
     if change[0] > max(8.0 * typical, 0.05 * scale):
         return True
     # Heading-free pose: each body joint's distance from the hips. A rest pose (arms out, legs
     # straight) is unlike every frame of the take, however fast the take moves or turns and
     # however the mocap jitters; a take's own first frame is as close to its next as any frame.
-    shape = np.linalg.norm(local, axis=2)  # (F, J)
+    shape = quat.vector_norm(local)  # (F, J)
     steps = np.abs(np.diff(shape, axis=0)).mean(axis=1)
     nearest = float(np.abs(shape[1:] - shape[0]).mean(axis=1).min())
     if nearest > max(5.0 * float(np.median(steps[1:])), 0.02 * scale):
@@ -549,7 +549,5 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     # Fast motion (a dash: a stride in 18 frames) moves the limbs almost as far per frame as a
     # T-pose jump, but smoothly: each frame follows from the next three (third differences are
     # tiny) except a rest frame, which does not.
-    residual = np.linalg.norm(local[:-3] - 3.0 * local[1:-2] + 3.0 * local[2:-1] - local[3:], axis=2).mean(
-        axis=1
-    )
+    residual = quat.vector_norm(local[:-3] - 3.0 * local[1:-2] + 3.0 * local[2:-1] - local[3:]).mean(axis=1)
     return bool(residual[0] > 5.0 * float(np.percentile(residual[1:], 99)))
