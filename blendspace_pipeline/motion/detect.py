@@ -266,7 +266,7 @@ def _chain_length(clip: Clip, world_pos: FloatArray, top: int, bottom: int) -> f
     parents = clip.skeleton.parents
     while joint != top and parents[joint] >= 0:
         parent = parents[joint]
-        total += np.linalg.norm(world_pos[:, joint] - world_pos[:, parent], axis=1)
+        total += quat.vector_norm(world_pos[:, joint] - world_pos[:, parent])
         joint = parent
     return float(np.median(total))
 
@@ -289,7 +289,7 @@ def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple
         parts.append(world_pos[:, body.head] - hip_mid)
     total = np.zeros(3)
     for part in parts:
-        length = np.linalg.norm(part, axis=1, keepdims=True)
+        length = quat.vector_norm(part)[:, None]
         total += (part / np.where(length > 0.0, length, 1.0)).mean(axis=0)
     norm = float(np.linalg.norm(total))
     if norm <= 1e-9:
@@ -386,7 +386,7 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
         left, right = hips
 
         def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
-            return np.cross(pos[:, left] - pos[:, right], up)
+            return quat.cross(pos[:, left] - pos[:, right], up)
 
         return Facing(label="hip line", vectors=from_hip_line)
     axis_name = settings.forward if settings.forward != "auto" else ("-y" if up_axis == "z" else "+z")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -223,10 +224,23 @@ def skeleton_key(clip: Clip) -> str:
 
     Clips sharing it were exported from one rig, so they must read the same up axis and unit.
     """
+    rest = np.asarray(clip.skeleton.rest_translations, dtype=np.float64)
+    # Printing the offsets costs more than the rest of a small clip's detection: a library's
+    # clips share a few rigs, so the key is remembered per exact rig.
+    names, parents = clip.skeleton.names, clip.skeleton.parents
+    if isinstance(names, tuple) and isinstance(parents, tuple):
+        return _skeleton_key(names, parents, rest.shape, rest.tobytes())
+    return _skeleton_key.__wrapped__(names, parents, rest.shape, rest.tobytes())  # lists: not hashable
+
+
+@lru_cache(maxsize=1024)
+def _skeleton_key(
+    names: tuple[str, ...], parents: tuple[int, ...], shape: tuple[int, ...], rest: bytes
+) -> str:
     offsets = np.array2string(
-        np.asarray(clip.skeleton.rest_translations, dtype=np.float64), precision=4, floatmode="maxprec"
+        np.frombuffer(rest, dtype=np.float64).reshape(shape), precision=4, floatmode="maxprec"
     )
-    text = repr((clip.skeleton.names, clip.skeleton.parents)) + offsets
+    text = repr((names, parents)) + offsets
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

@@ -50,6 +50,11 @@ def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     return np.asarray(v + w * t + _cross(u, t), dtype=np.float64)
 
 
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.cross(a, b)`` of 3-vectors (broadcasting), the same products in the same order."""
+    return _cross(a, b)
+
+
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     # Written out: np.cross spends most of its time moving axes around on the small arrays
     # forward kinematics passes per joint.

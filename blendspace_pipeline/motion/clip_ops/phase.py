@@ -31,7 +31,7 @@ from blendspace_pipeline.motion.detect import (
     up_vector,
 )
 from blendspace_pipeline.motion.joint_names import split_side
-from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray, vector_norm
 
 # A stride shorter than this is not a gait (a fox trots at about 0.35 s per stride).
 MIN_PERIOD_S = 0.25
@@ -137,12 +137,12 @@ def foot_signal(
     up = up_vector(up_axis)  # any signed axis: -Y and -Z up too
     forward = resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos)
     forward = forward - (forward @ up)[:, None] * up
-    length = np.linalg.norm(forward, axis=1, keepdims=True)
+    length = vector_norm(forward)[:, None]
     forward = forward / np.where(length > 0.0, length, 1.0)
     left, right = feet
     signal = np.einsum("fi,fi->f", world_pos[:, left] - world_pos[:, right], forward)
     legs = [
-        np.linalg.norm(world_pos[:, foot] - world_pos[:, hip], axis=1).mean()
+        vector_norm(world_pos[:, foot] - world_pos[:, hip]).mean()
         for foot, hip in zip(feet, hips, strict=True)
     ]
     return signal, float(np.mean(legs)), feet

@@ -21,7 +21,7 @@ from blendspace_pipeline.motion.clip_ops.phase import (
     foot_signal,
 )
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray, vector_norm
 
 
 def sway_free(
@@ -187,7 +187,7 @@ def _still_ends(positions: FloatArray, fps: float, period: float) -> tuple[bool,
     than a quarter of its average speed there (a take that starts or ends standing)."""
     frames = len(positions)
     reach = int(min(frames - 1, max(1, round(0.5 * period * fps))))
-    path = float(np.linalg.norm(np.diff(positions, axis=0), axis=1).sum())
+    path = float(vector_norm(np.diff(positions, axis=0)).sum())
     if path <= 0.0:
         return True, True
     typical = path / (frames - 1) * reach
