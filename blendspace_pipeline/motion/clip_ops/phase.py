@@ -170,18 +170,30 @@ def _chirp_z(signal: FloatArray, start: float, step: float, count: int) -> np.nd
     sample), by Bluestein's algorithm: three FFTs of about ``len(signal) + count`` points instead of
     the ``len(signal) * count`` products of evaluating each frequency on its own."""
     n = len(signal)
+    chirp, kernel, size = _chirp_kernel(n, step, count)
+    k = np.arange(n, dtype=np.float64)
+    weighted = signal * np.exp(-2j * np.pi * start * k) * chirp[:n]
+    spectrum = np.fft.ifft(np.fft.fft(weighted, size) * kernel)[:count]
+    result: np.ndarray = spectrum * chirp[:count]
+    return result
+
+
+@lru_cache(maxsize=16)
+def _chirp_kernel(n: int, step: float, count: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """The chirp, the transformed kernel and the FFT size of `_chirp_z`: they depend on the grid's
+    spacing alone, which clips of one length and rate (a library's takes) share."""
     size = 1 << int(np.ceil(np.log2(n + count - 1)))
     k = np.arange(max(n, count), dtype=np.float64)
     # exp(-i pi step k^2): k^2 taken modulo 2/step would lose nothing, but float64 holds k^2
     # exactly far beyond any clip, so the chirp is computed directly.
     chirp = np.exp(-1j * np.pi * step * k * k)
-    weighted = signal * np.exp(-2j * np.pi * start * k[:n]) * chirp[:n]
     kernel = np.zeros(size, dtype=np.complex128)
     kernel[:count] = np.conj(chirp[:count])
     kernel[size - n + 1 :] = np.conj(chirp[1:n][::-1])
-    spectrum = np.fft.ifft(np.fft.fft(weighted, size) * np.fft.fft(kernel))[:count]
-    result: np.ndarray = spectrum * chirp[:count]
-    return result
+    transformed = np.fft.fft(kernel)
+    chirp.flags.writeable = False  # shared between calls
+    transformed.flags.writeable = False
+    return chirp, transformed, size
 
 
 def _sinusoid_fit_grid(signal: FloatArray, start: float, step: float, count: int) -> FloatArray:
@@ -225,7 +237,7 @@ def _sinusoid_fit_grid_det(
     return fit, ~(det > floor)
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=16)
 def _constant_transforms(n: int, start: float, step: float, count: int) -> tuple[np.ndarray, np.ndarray]:
     """The chirp-z transforms of n ones at the grid's frequencies and at twice them: they depend
     on the grid alone, which clips of one length and rate (a library's takes) share."""
