@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blendspace_pipeline.motion import contacts
+from blendspace_pipeline.motion import contacts, stats
 from blendspace_pipeline.motion.clip_ops import phase, sway
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -209,3 +209,41 @@ def test_refinement_finds_the_exact_best_of_its_grid() -> None:
                 centre, step = float(grid[int(np.argmax(exact))]), float(grid[1] - grid[0])
                 checked += 1
     assert checked == 120
+
+
+def stat_arrays() -> list[FloatArray]:
+    rng = np.random.default_rng(21)
+    found: list[FloatArray] = [
+        np.array([3.0]),
+        np.array([2.0, -1.0]),
+        np.array([-0.0, 0.0, -0.0]),
+        np.zeros(4),
+    ]
+    for _ in range(200):
+        count = int(rng.integers(1, 900))
+        values = rng.normal(0.0, rng.uniform(1e-3, 1e3), count)
+        if rng.random() < 0.3:
+            values = np.round(values)  # ties
+        found.append(values)
+    found.append(np.array([1.0, np.inf, 2.0]))
+    found.append(np.array([1.0, np.nan, 2.0]))
+    return found
+
+
+@pytest.mark.parametrize("q", [0.0, 5.0, 50.0, 90.0, 95.0, 99.0, 100.0, 37.3])
+def test_percentile_is_numpys(q: float) -> None:
+    for values in stat_arrays():
+        want = np.percentile(values, q)
+        got = stats.percentile(values, q)
+        assert got == want or (np.isnan(got) and np.isnan(want)), (q, values)
+        assert np.signbit(got) == np.signbit(want)
+    for values in stat_arrays()[:50]:
+        both = stats.percentiles(values, (5.0, 95.0))
+        assert both == [stats.percentile(values, 5.0), stats.percentile(values, 95.0)]
+
+
+def test_median_is_numpys() -> None:
+    for values in stat_arrays():
+        want, got = np.median(values), stats.median(values)
+        assert got == want or (np.isnan(got) and np.isnan(want)), values
+        assert np.signbit(got) == np.signbit(want)

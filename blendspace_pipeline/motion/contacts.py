@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.quaternions import FloatArray, vector_norm
 
 FEET = ("left", "right")
@@ -171,9 +172,8 @@ def detect_contacts(
         planted = np.zeros(frames, dtype=bool)
         for joint in joints:
             height = _smooth(up_sign * positions[:, joint, up], window)
-            low_high = np.percentile(height, [_FLOOR_PERCENTILE, 100.0 - _FLOOR_PERCENTILE])
-            floor = float(low_high[0])
-            lift = float(low_high[1]) - floor
+            floor, high = stats.percentiles(height, (_FLOOR_PERCENTILE, 100.0 - _FLOOR_PERCENTILE))
+            lift = high - floor
             near = float(np.clip(_HEIGHT_SHARE * lift, *_HEIGHT_BOUNDS))
             speed = _ground_speed(positions[:, joint][:, ground], fps, reach)
             low = height - floor

@@ -15,6 +15,7 @@ import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.joint_names import find_hips, split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
@@ -268,7 +269,7 @@ def _chain_length(clip: Clip, world_pos: FloatArray, top: int, bottom: int) -> f
         parent = parents[joint]
         total += quat.vector_norm(world_pos[:, joint] - world_pos[:, parent])
         joint = parent
-    return float(np.median(total))
+    return stats.median(total)
 
 
 def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple[str, float, str] | None:
@@ -422,7 +423,7 @@ def hip_height(clip: Clip, world_pos: FloatArray, up_axis: str, root: RootPoint)
     """Upright height of the root point above the lowest joint (the feet), in file units."""
     up = up_vector(up_axis)
     heights = root.positions(world_pos) @ up - (world_pos @ up).min(axis=1)
-    return float(np.percentile(heights, _UPRIGHT_PERCENTILE))
+    return stats.percentile(heights, _UPRIGHT_PERCENTILE)
 
 
 def resolve_units(
@@ -532,7 +533,7 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     else:
         local = world_pos - world_pos[:, :1]
     change = quat.vector_norm(np.diff(local, axis=0)).mean(axis=1)
-    typical = float(np.median(change[1:]))
+    typical = stats.median(change[1:])
     scale = float(quat.vector_norm(local[1]).max()) or 1.0
     if change[0] > max(8.0 * typical, 0.05 * scale):
         return True
@@ -542,7 +543,7 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     shape = quat.vector_norm(local)  # (F, J)
     steps = np.abs(np.diff(shape, axis=0)).mean(axis=1)
     nearest = float(np.abs(shape[1:] - shape[0]).mean(axis=1).min())
-    if nearest > max(5.0 * float(np.median(steps[1:])), 0.02 * scale):
+    if nearest > max(5.0 * stats.median(steps[1:]), 0.02 * scale):
         return True
     if clip.frame_count < 8 or change[0] <= 0.02 * scale:
         return False
@@ -550,4 +551,4 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     # T-pose jump, but smoothly: each frame follows from the next three (third differences are
     # tiny) except a rest frame, which does not.
     residual = quat.vector_norm(local[:-3] - 3.0 * local[1:-2] + 3.0 * local[2:-1] - local[3:]).mean(axis=1)
-    return bool(residual[0] > 5.0 * float(np.percentile(residual[1:], 99)))
+    return bool(residual[0] > 5.0 * stats.percentile(residual[1:], 99))

@@ -18,6 +18,7 @@ from typing import Literal
 import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
 from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal
@@ -270,10 +271,10 @@ def steady_span(
     lengths = np.diff(ups)
     speeds = np.linalg.norm(np.diff(at, axis=0), axis=1) / lengths
     faster = np.sort(speeds)[len(speeds) // 2 :]
-    reference = float(np.median(faster))
+    reference = stats.median(faster)
     if reference <= 0.0:
         return None
-    typical = float(np.median(lengths))
+    typical = stats.median(lengths)
     steady = (np.abs(speeds - reference) <= _STEADY_SPEED_TOLERANCE * reference) & (
         np.abs(lengths - typical) <= _STEADY_PERIOD_TOLERANCE * typical
     )

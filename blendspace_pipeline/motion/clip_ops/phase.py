@@ -21,6 +21,7 @@ from typing import Literal
 
 import numpy as np
 
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.detect import (
     RigSettings,
@@ -359,7 +360,7 @@ def _anchors(ups: FloatArray, downs: FloatArray, rate: float, offset: float) -> 
     inside = (before >= 0) & (after < len(ups))
     previous, following = ups[before[inside]], ups[after[inside]]
     fractions = (downs[inside] - previous) / (following - previous)
-    half = float(np.median(fractions)) if len(fractions) else 0.5
+    half = stats.median(fractions) if len(fractions) else 0.5
     marks = np.concatenate([ups, downs])
     is_up = np.concatenate([np.ones(len(ups), bool), np.zeros(len(downs), bool)])
     order = np.argsort(marks, kind="stable")
@@ -369,7 +370,7 @@ def _anchors(ups: FloatArray, downs: FloatArray, rate: float, offset: float) -> 
     # Relative phase: +half from an up to the next down, +(1 - half) from a down to the next up.
     steps = np.where(is_up[1:], 1.0 - half, half)
     relative = np.concatenate([[0.0 if is_up[0] else half], (0.0 if is_up[0] else half) + np.cumsum(steps)])
-    whole = float(np.round(np.median(rate * marks + offset - relative)))
+    whole = float(np.round(stats.median(rate * marks + offset - relative)))
     return marks, relative + whole
 
 

@@ -12,6 +12,7 @@ from typing import Literal
 
 import numpy as np
 
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops.phase import (
     COMPUTE,
@@ -231,8 +232,8 @@ def stride_starts(
     if found is None:
         return None
     signal = found[0]
-    centred = signal - np.median(signal)
-    amplitude = float(np.percentile(np.abs(centred), 95))
+    centred = signal - stats.median(signal)
+    amplitude = stats.percentile(np.abs(centred), 95)
     if amplitude <= 0.0:
         return None
     return _upward_crossings(centred, 0.25 * amplitude), centred
