@@ -506,10 +506,15 @@ def _unit_from_length(
     )
 
 
-def _pose_joints(clip: Clip, body: BodyJoints | None) -> list[int] | None:
-    """The pelvis (the hips' lowest common ancestor) and every joint below it, or None."""
+def _pose_joints(clip: Clip, body: BodyJoints | None) -> list[int] | slice | None:
+    """The pelvis (the hips' lowest common ancestor) and every joint below it, or None; as a
+    slice when they are consecutive (most rigs: the pelvis is the root), which indexes the
+    positions without copying them."""
     pelvis = _lowest_common_ancestor(clip, *body.hips) if body is not None else None
-    return None if pelvis is None else [pelvis, *clip.skeleton.descendants(pelvis)]
+    if pelvis is None:
+        return None
+    joints = [pelvis, *clip.skeleton.descendants(pelvis)]  # ascending: parents come first
+    return slice(pelvis, joints[-1] + 1) if joints == list(range(pelvis, joints[-1] + 1)) else joints
 
 
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:

@@ -133,7 +133,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     # Forward kinematics of the whole clip: the unit estimate needs every frame (below).
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values are reported just below
         whole_rot, whole_pos = forward_kinematics(clip)
-    if not (np.isfinite(whole_pos).all() and np.abs(whole_pos).max(initial=0.0) < _ABSURD_LENGTH):
+    # One pass: the largest magnitude is NaN or infinite when any value is.
+    if not np.abs(whole_pos).max(initial=0.0) < _ABSURD_LENGTH:
         raise ClipReadError(
             f"clip {clip.name!r}: joint positions reach {np.nanmax(np.abs(whole_pos)):.3g} units, "
             "beyond any unit of length",
@@ -183,12 +184,17 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
             f"length unit guessed: {meters_per_unit:.4g} m per unit; set `skeleton.units` to be sure"
         )
     positions = root.positions(world_pos) @ ground.T * meters_per_unit  # (F, 2) metres
-    forward = facing.vectors(world_rot, world_pos) @ ground.T  # (F, 2)
+    facing_vectors = facing.vectors(world_rot, world_pos)
+    forward = facing_vectors @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
     posed = (world_rot, world_pos)  # this FK is reused below, not computed again
     # The foot signal the gait cycle and the sway removal both read, computed once. On the whole
-    # clip its up axis is the one found above; a range reads its own (as `foot_signal` would).
-    found = foot_signal(used, settings, posed, up_axis=up_axis if used is clip else None)
+    # clip its up axis and facing are the ones found above; a range reads its own up axis (as
+    # `foot_signal` would), and so its own facing.
+    whole = used is clip
+    found = foot_signal(
+        used, settings, posed, up_axis=up_axis if whole else None, facing=facing_vectors if whole else None
+    )
     cycle = detect_cycle(used, settings, posed, found=found)
     # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
     heading = sway_free(heading, used, settings, posed, cycle, positions, found=found)

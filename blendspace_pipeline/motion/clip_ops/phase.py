@@ -121,12 +121,18 @@ COMPUTE: Literal["compute"] = "compute"
 
 
 def foot_signal(
-    clip: Clip, settings: RigSettings, posed: Posed | None = None, *, up_axis: str | None = None
+    clip: Clip,
+    settings: RigSettings,
+    posed: Posed | None = None,
+    *,
+    up_axis: str | None = None,
+    facing: FloatArray | None = None,
 ) -> FootSignal:
     """(left foot minus right foot along the facing on every frame, mean leg length, feet); file units.
 
     ``posed`` is the clip's forward kinematics when the caller has it already (`measure` does),
-    ``up_axis`` what `detect.resolve_up` reads from it when the caller knows that too.
+    ``up_axis`` what `detect.resolve_up` reads from it and ``facing`` the facing vectors (F, 3)
+    of that up axis (`detect.resolve_facing`) when the caller knows them too.
     """
     feet = foot_joints(clip, settings)
     hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
@@ -136,7 +142,9 @@ def foot_signal(
     if up_axis is None:
         up_axis, _ = resolve_up(clip, world_pos, settings)
     up = up_vector(up_axis)  # any signed axis: -Y and -Z up too
-    forward = resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos)
+    forward = (
+        resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos) if facing is None else facing
+    )
     forward = forward - (forward @ up)[:, None] * up
     length = vector_norm(forward)[:, None]
     forward = forward / np.where(length > 0.0, length, 1.0)
