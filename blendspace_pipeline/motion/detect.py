@@ -517,6 +517,14 @@ def _pose_joints(clip: Clip, body: BodyJoints | None) -> list[int] | slice | Non
     return slice(pelvis, joints[-1] + 1) if joints == list(range(pelvis, joints[-1] + 1)) else joints
 
 
+def _length(components: FloatArray) -> FloatArray:
+    """Lengths of vectors stored component-major ((3, ...) arrays): `quaternions.vector_norm`'s
+    sum in the same order."""
+    x, y, z = components
+    length: FloatArray = np.sqrt(x * x + y * y + z * z)
+    return length
+
+
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:
     """True when the first frame should be dropped as a rest/T-pose frame.
 
@@ -532,20 +540,24 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
         return False
     body = body_joints(clip, settings)
     joints = rig_memo("pose_joints", clip, settings, lambda: _pose_joints(clip, body))
+    # Component-major (3, F, J): every step below works on whole contiguous arrays; numpy's
+    # loops over an inner axis of 3 cost several times the arithmetic (same values either way).
     if body is not None and joints is not None:
         anchor = 0.5 * (world_pos[:, body.hips[0]] + world_pos[:, body.hips[1]])
-        local = world_pos[:, joints] - anchor[:, None]
+        points, origin = world_pos[:, joints], anchor[:, None]
     else:
-        local = world_pos - world_pos[:, :1]
-    change = quat.vector_norm(np.diff(local, axis=0)).mean(axis=1)
+        points, origin = world_pos, world_pos[:, :1]
+    local = np.empty((3, *points.shape[:2]))
+    np.subtract(np.moveaxis(points, 2, 0), np.moveaxis(origin, 2, 0), out=local)
+    change = _length(np.diff(local, axis=1)).mean(axis=1)
     typical = stats.median(change[1:])
-    scale = float(quat.vector_norm(local[1]).max()) or 1.0
+    scale = float(_length(local[:, 1]).max()) or 1.0
     if change[0] > max(8.0 * typical, 0.05 * scale):
         return True
     # Heading-free pose: each body joint's distance from the hips. A rest pose (arms out, legs
     # straight) is unlike every frame of the take, however fast the take moves or turns and
     # however the mocap jitters; a take's own first frame is as close to its next as any frame.
-    shape = quat.vector_norm(local)  # (F, J)
+    shape = _length(local)  # (F, J)
     steps = np.abs(np.diff(shape, axis=0)).mean(axis=1)
     nearest = float(np.abs(shape[1:] - shape[0]).mean(axis=1).min())
     if nearest > max(5.0 * stats.median(steps[1:]), 0.02 * scale):
@@ -555,5 +567,7 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     # Fast motion (a dash: a stride in 18 frames) moves the limbs almost as far per frame as a
     # T-pose jump, but smoothly: each frame follows from the next three (third differences are
     # tiny) except a rest frame, which does not.
-    residual = quat.vector_norm(local[:-3] - 3.0 * local[1:-2] + 3.0 * local[2:-1] - local[3:]).mean(axis=1)
+    residual = _length(local[:, :-3] - 3.0 * local[:, 1:-2] + 3.0 * local[:, 2:-1] - local[:, 3:]).mean(
+        axis=1
+    )
     return bool(residual[0] > 5.0 * stats.percentile(residual[1:], 99))
