@@ -300,16 +300,19 @@ def steady_span(
     return first, min(last, len(ground) - 1) + 1
 
 
+@lru_cache(maxsize=16)
 def _ground_basis(up_axis: str) -> FloatArray:
     """Rows e1, e2 spanning the ground with e1 x e2 = up, so atan2(e2, e1) grows counter-clockwise
-    seen from above: a left turn is positive."""
+    seen from above: a left turn is positive. Remembered per axis (read-only)."""
     # For Y up: (Z, X); for Z up: (X, Y); the others are these turned to their axis.
     up = up_vector(up_axis)
     axis = int(np.argmax(np.abs(up)))
     first = np.zeros(3)
     first[(axis + 1) % 3] = 1.0
     second = np.cross(up, first)
-    return np.array([first, second])
+    basis = np.array([first, second])
+    basis.flags.writeable = False
+    return basis
 
 
 def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[str, float]:
