@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blendspace_pipeline.motion import contacts, stats
+from blendspace_pipeline.motion import contacts, detect, stats
+from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip_ops import phase, sway
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -247,3 +248,23 @@ def test_median_is_numpys() -> None:
         want, got = np.median(values), stats.median(values)
         assert got == want or (np.isnan(got) and np.isnan(want)), values
         assert np.signbit(got) == np.signbit(want)
+
+
+@pytest.mark.parametrize("joints", [1, 2, 19, 31, 60])
+def test_joint_mean_is_numpys(joints: int) -> None:
+    world_pos = np.random.default_rng(joints).normal(0.0, 30.0, (300, joints, 3))
+    np.testing.assert_array_equal(contacts._joint_mean(world_pos, 0.0254), (world_pos * 0.0254).mean(axis=1))
+
+
+def test_written_out_norms_are_numpys() -> None:
+    rng = np.random.default_rng(4)
+    for shape in [(500, 3), (500, 2), (200, 19, 3), (3,)]:
+        vectors = rng.normal(0.0, 50.0, shape)
+        np.testing.assert_array_equal(quat.vector_norm(vectors), np.linalg.norm(vectors, axis=-1))
+    vectors = rng.normal(0.0, 50.0, (200, 19, 3))
+    np.testing.assert_array_equal(
+        detect._length(np.moveaxis(vectors, 2, 0)), np.linalg.norm(vectors, axis=-1)
+    )
+    np.testing.assert_array_equal(
+        quat.cross(vectors, np.array([0.0, 1.0, 0.0])), np.cross(vectors, [0.0, 1.0, 0.0])
+    )

@@ -115,16 +115,14 @@ def _ground_speed(track: FloatArray, fps: float, reach: int) -> FloatArray:
 
 
 def _joint_mean(world_pos: FloatArray, scale: float) -> FloatArray:
-    """``(world_pos * scale).mean(axis=1)`` of (F, J, 3) positions: each joint scaled and added
-    one by one, as numpy's reduction adds them (the same result to the last bit), at a fraction
-    of its cost on so short an inner axis and without scaling every joint's array first."""
+    """``(world_pos * scale).mean(axis=1)`` of (F, J, 3) positions. numpy's reduction over the
+    joints runs an inner loop of 3 per frame and joint; einsum adds the joints one by one as the
+    reduction does (the same result to the last bit, checked for 1 to 150 joints) several times
+    faster."""
     joints = world_pos.shape[1]
     if joints == 0:
         return (world_pos * scale).mean(axis=1)  # type: ignore[no-any-return]
-    total = world_pos[:, 0] * scale
-    for joint in range(1, joints):
-        total += world_pos[:, joint] * scale
-    mean: FloatArray = total / joints
+    mean: FloatArray = np.einsum("fjc->fc", world_pos * scale) / joints
     return mean
 
 
