@@ -268,3 +268,25 @@ def test_written_out_norms_are_numpys() -> None:
     np.testing.assert_array_equal(
         quat.cross(vectors, np.array([0.0, 1.0, 0.0])), np.cross(vectors, [0.0, 1.0, 0.0])
     )
+
+
+def test_quaternion_product_is_the_stacked_one() -> None:
+    """`quaternions.multiply` writes its components into one array; the values are the stacked
+    expressions' to the last bit, broadcasting and dtype included."""
+    rng = np.random.default_rng(8)
+    a, b = rng.normal(size=(300, 7, 4)), rng.normal(size=(300, 7, 4))
+    for left, right in [(a, b), (a[:, 2], b[:, 5]), (a, quat.IDENTITY), (a[:5].astype(np.float32), b[:5])]:
+        ax, ay, az, aw = (left[..., i] for i in range(4))
+        bx, by, bz, bw = (right[..., i] for i in range(4))
+        stacked = np.stack(
+            [
+                aw * bx + ax * bw + ay * bz - az * by,
+                aw * by - ax * bz + ay * bw + az * bx,
+                aw * bz + ax * by - ay * bx + az * bw,
+                aw * bw - ax * bx - ay * by - az * bz,
+            ],
+            axis=-1,
+        )
+        product = quat.multiply(left, right)
+        assert product.dtype == stacked.dtype
+        np.testing.assert_array_equal(product, stacked)
