@@ -290,3 +290,14 @@ def test_quaternion_product_is_the_stacked_one() -> None:
         product = quat.multiply(left, right)
         assert product.dtype == stacked.dtype
         np.testing.assert_array_equal(product, stacked)
+
+
+def test_rotation_is_the_vector_form() -> None:
+    """`quaternions.rotate` written out per component equals v + w t + u x t, t = 2 u x v."""
+    rng = np.random.default_rng(9)
+    q = quat.normalize(rng.normal(size=(300, 7, 4)))
+    v = rng.normal(0.0, 20.0, (300, 7, 3))
+    for rotation, vectors in [(q, v), (q[:, 3], v[:, 1]), (q[0, 0], v), (q, v[0, 0])]:
+        u, w = rotation[..., :3], rotation[..., 3:4]
+        t = 2.0 * np.cross(u, vectors)
+        np.testing.assert_array_equal(quat.rotate(rotation, vectors), vectors + w * t + np.cross(u, t))

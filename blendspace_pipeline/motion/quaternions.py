@@ -41,10 +41,19 @@ def normalize(q: FloatArray) -> FloatArray:
 
 def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
-    u = q[..., :3]
-    w = q[..., 3:4]
-    t = 2.0 * _cross(u, v)
-    return np.asarray(v + w * t + _cross(u, t), dtype=np.float64)
+    # v + w t + u x t with t = 2 u x v, written out per component: numpy's loops over an inner
+    # axis of 3 (and the (..., 1) scalar part broadcast over it) cost more than the arithmetic.
+    # The same products and sums in the same order, so the same values.
+    ux, uy, uz, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+    tx = 2.0 * (uy * vz - uz * vy)
+    ty = 2.0 * (uz * vx - ux * vz)
+    tz = 2.0 * (ux * vy - uy * vx)
+    rotated: FloatArray = np.empty((*np.broadcast_shapes(np.shape(q)[:-1], np.shape(v)[:-1]), 3))
+    rotated[..., 0] = vx + w * tx + (uy * tz - uz * ty)
+    rotated[..., 1] = vy + w * ty + (uz * tx - ux * tz)
+    rotated[..., 2] = vz + w * tz + (ux * ty - uy * tx)
+    return rotated
 
 
 def cross(a: FloatArray, b: FloatArray) -> FloatArray:
