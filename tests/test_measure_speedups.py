@@ -234,7 +234,8 @@ def stat_arrays() -> list[FloatArray]:
 @pytest.mark.parametrize("q", [0.0, 5.0, 50.0, 90.0, 95.0, 99.0, 100.0, 37.3])
 def test_percentile_is_numpys(q: float) -> None:
     for values in stat_arrays():
-        want = np.percentile(values, q)
+        with np.errstate(invalid="ignore"):  # inf - inf in numpy's interpolation: NaN, as ours
+            want = np.percentile(values, q)
         got = stats.percentile(values, q)
         assert got == want or (np.isnan(got) and np.isnan(want)), (q, values)
         assert np.signbit(got) == np.signbit(want)
@@ -245,7 +246,9 @@ def test_percentile_is_numpys(q: float) -> None:
 
 def test_median_is_numpys() -> None:
     for values in stat_arrays():
-        want, got = np.median(values), stats.median(values)
+        with np.errstate(invalid="ignore"):
+            want = np.median(values)
+        got = stats.median(values)
         assert got == want or (np.isnan(got) and np.isnan(want)), values
         assert np.signbit(got) == np.signbit(want)
 
