@@ -7,13 +7,15 @@ can report what was used, and every automatic guess can be overridden in the man
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
+from typing import TypeVar, cast
 
 import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.joint_names import find_hips, split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
@@ -94,6 +96,39 @@ class Facing:
     guess: DetectionGuess | None = None
 
 
+_T = TypeVar("_T")
+# Answers that depend on the rig alone (joint names, hierarchy, the manifest's hip names), never on
+# the motion: measuring one clip asks for them a dozen times, and a library shares a few rigs.
+_RIG_MEMO: dict[Hashable, object] = {}
+_RIG_MEMO_SIZE = 4096
+
+
+def rig_memo(kind: str, clip: Clip, settings: RigSettings, compute: Callable[[], _T], *extra: Hashable) -> _T:
+    """``compute()``, remembered per rig: joint names, parents, whether there is a hierarchy, the
+    manifest's hip names and ``extra`` (whatever else the answer depends on). A ``compute`` that
+    raises (a joint the manifest names is missing) is not remembered: the next clip raises too,
+    with its own name in the message."""
+    skeleton = clip.skeleton
+    key = (
+        kind,
+        tuple(skeleton.names),
+        tuple(skeleton.parents),
+        skeleton.has_hierarchy,
+        settings.left_hip,
+        settings.right_hip,
+        *extra,
+    )
+    try:
+        return cast(_T, _RIG_MEMO[key])
+    except KeyError:
+        pass
+    value = compute()
+    if len(_RIG_MEMO) >= _RIG_MEMO_SIZE:
+        _RIG_MEMO.clear()
+    _RIG_MEMO[key] = value
+    return value
+
+
 def _joint(clip: Clip, name: str, what: str) -> int:
     try:
         return clip.skeleton.index(name)
@@ -111,6 +146,10 @@ def _joint(clip: Clip, name: str, what: str) -> int:
 
 
 def hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
+    return rig_memo("hip_pair", clip, settings, lambda: _hip_pair(clip, settings))
+
+
+def _hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     if settings.left_hip != "auto" and settings.right_hip != "auto":
         return _joint(clip, settings.left_hip, "left_hip"), _joint(clip, settings.right_hip, "right_hip")
     if not clip.skeleton.has_hierarchy:
@@ -182,6 +221,10 @@ class BodyJoints:
 
 
 def body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
+    return rig_memo("body_joints", clip, settings, lambda: _body_joints(clip, settings))
+
+
+def _body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
     if not clip.skeleton.has_hierarchy:
         return None
     hips = hip_pair(clip, settings)
@@ -224,9 +267,9 @@ def _chain_length(clip: Clip, world_pos: FloatArray, top: int, bottom: int) -> f
     parents = clip.skeleton.parents
     while joint != top and parents[joint] >= 0:
         parent = parents[joint]
-        total += np.linalg.norm(world_pos[:, joint] - world_pos[:, parent], axis=1)
+        total += quat.vector_norm(world_pos[:, joint] - world_pos[:, parent])
         joint = parent
-    return float(np.median(total))
+    return stats.median(total)
 
 
 def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple[str, float, str] | None:
@@ -247,7 +290,7 @@ def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple
         parts.append(world_pos[:, body.head] - hip_mid)
     total = np.zeros(3)
     for part in parts:
-        length = np.linalg.norm(part, axis=1, keepdims=True)
+        length = quat.vector_norm(part)[:, None]
         total += (part / np.where(length > 0.0, length, 1.0)).mean(axis=0)
     norm = float(np.linalg.norm(total))
     if norm <= 1e-9:
@@ -344,7 +387,7 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
         left, right = hips
 
         def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
-            return np.cross(pos[:, left] - pos[:, right], up)
+            return quat.cross(pos[:, left] - pos[:, right], up)
 
         return Facing(label="hip line", vectors=from_hip_line)
     axis_name = settings.forward if settings.forward != "auto" else ("-y" if up_axis == "z" else "+z")
@@ -380,7 +423,7 @@ def hip_height(clip: Clip, world_pos: FloatArray, up_axis: str, root: RootPoint)
     """Upright height of the root point above the lowest joint (the feet), in file units."""
     up = up_vector(up_axis)
     heights = root.positions(world_pos) @ up - (world_pos @ up).min(axis=1)
-    return float(np.percentile(heights, _UPRIGHT_PERCENTILE))
+    return stats.percentile(heights, _UPRIGHT_PERCENTILE)
 
 
 def resolve_units(
@@ -463,6 +506,25 @@ def _unit_from_length(
     )
 
 
+def _pose_joints(clip: Clip, body: BodyJoints | None) -> list[int] | slice | None:
+    """The pelvis (the hips' lowest common ancestor) and every joint below it, or None; as a
+    slice when they are consecutive (most rigs: the pelvis is the root), which indexes the
+    positions without copying them."""
+    pelvis = _lowest_common_ancestor(clip, *body.hips) if body is not None else None
+    if pelvis is None:
+        return None
+    joints = [pelvis, *clip.skeleton.descendants(pelvis)]  # ascending: parents come first
+    return slice(pelvis, joints[-1] + 1) if joints == list(range(pelvis, joints[-1] + 1)) else joints
+
+
+def _length(components: FloatArray) -> FloatArray:
+    """Lengths of vectors stored component-major ((3, ...) arrays): `quaternions.vector_norm`'s
+    sum in the same order."""
+    x, y, z = components
+    length: FloatArray = np.sqrt(x * x + y * y + z * z)
+    return length
+
+
 def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> bool:
     """True when the first frame should be dropped as a rest/T-pose frame.
 
@@ -477,32 +539,35 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     if not clip.skeleton.has_hierarchy:
         return False
     body = body_joints(clip, settings)
-    pelvis = _lowest_common_ancestor(clip, *body.hips) if body is not None else None
-    if body is not None and pelvis is not None:
-        joints = [pelvis, *clip.skeleton.descendants(pelvis)]
+    joints = rig_memo("pose_joints", clip, settings, lambda: _pose_joints(clip, body))
+    # Component-major (3, F, J): every step below works on whole contiguous arrays; numpy's
+    # loops over an inner axis of 3 cost several times the arithmetic (same values either way).
+    if body is not None and joints is not None:
         anchor = 0.5 * (world_pos[:, body.hips[0]] + world_pos[:, body.hips[1]])
-        local = world_pos[:, joints] - anchor[:, None]
+        points, origin = world_pos[:, joints], anchor[:, None]
     else:
-        local = world_pos - world_pos[:, :1]
-    change = np.linalg.norm(np.diff(local, axis=0), axis=2).mean(axis=1)
-    typical = float(np.median(change[1:]))
-    scale = float(np.linalg.norm(local[1], axis=1).max()) or 1.0
+        points, origin = world_pos, world_pos[:, :1]
+    local = np.empty((3, *points.shape[:2]))
+    np.subtract(np.moveaxis(points, 2, 0), np.moveaxis(origin, 2, 0), out=local)
+    change = _length(np.diff(local, axis=1)).mean(axis=1)
+    typical = stats.median(change[1:])
+    scale = float(_length(local[:, 1]).max()) or 1.0
     if change[0] > max(8.0 * typical, 0.05 * scale):
         return True
     # Heading-free pose: each body joint's distance from the hips. A rest pose (arms out, legs
     # straight) is unlike every frame of the take, however fast the take moves or turns and
     # however the mocap jitters; a take's own first frame is as close to its next as any frame.
-    shape = np.linalg.norm(local, axis=2)  # (F, J)
+    shape = _length(local)  # (F, J)
     steps = np.abs(np.diff(shape, axis=0)).mean(axis=1)
     nearest = float(np.abs(shape[1:] - shape[0]).mean(axis=1).min())
-    if nearest > max(5.0 * float(np.median(steps[1:])), 0.02 * scale):
+    if nearest > max(5.0 * stats.median(steps[1:]), 0.02 * scale):
         return True
     if clip.frame_count < 8 or change[0] <= 0.02 * scale:
         return False
     # Fast motion (a dash: a stride in 18 frames) moves the limbs almost as far per frame as a
     # T-pose jump, but smoothly: each frame follows from the next three (third differences are
     # tiny) except a rest frame, which does not.
-    residual = np.linalg.norm(local[:-3] - 3.0 * local[1:-2] + 3.0 * local[2:-1] - local[3:], axis=2).mean(
+    residual = _length(local[:, :-3] - 3.0 * local[:, 1:-2] + 3.0 * local[:, 2:-1] - local[:, 3:]).mean(
         axis=1
     )
-    return bool(residual[0] > 5.0 * float(np.percentile(residual[1:], 99)))
+    return bool(residual[0] > 5.0 * stats.percentile(residual[1:], 99))

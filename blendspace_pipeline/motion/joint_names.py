@@ -8,6 +8,7 @@ the hips and mirroring can pair left with right.
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 
 from blendspace_pipeline.motion.clip import Skeleton
 
@@ -22,6 +23,9 @@ _HIP_BASES = ("upleg", "upperleg", "legupper", "thigh", "hip", "leg")
 _NOT_HIP = ("hipjoint", "hips", "pelvis")
 
 
+# Measuring one clip asks for its hips and feet a dozen times and a library repeats a few rigs
+# thousands of times: both answers depend on the names alone, so they are remembered.
+@lru_cache(maxsize=8192)
 def split_side(name: str) -> tuple[Side, str]:
     """(side, base) where base is the name without its side token, lower-case, alphanumeric."""
     side = ""
@@ -45,8 +49,13 @@ def split_side(name: str) -> tuple[Side, str]:
 
 def find_hips(skeleton: Skeleton) -> tuple[int, int] | None:
     """Indices of the (left, right) hip-socket joints, or None when no pair is recognised."""
+    return _hips_of(tuple(skeleton.names))
+
+
+@lru_cache(maxsize=1024)
+def _hips_of(names: tuple[str, ...]) -> tuple[int, int] | None:
     by_base: dict[str, dict[Side, int]] = {}
-    for index, name in enumerate(skeleton.names):
+    for index, name in enumerate(names):
         side, base = split_side(name)
         if side and base not in _NOT_HIP:
             by_base.setdefault(base, {}).setdefault(side, index)

@@ -12,14 +12,16 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
 
 from blendspace_pipeline.errors import ClipReadError
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
-from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
+from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal
 from blendspace_pipeline.motion.clip_ops.sway import stride_starts, sway_free
 from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
@@ -131,7 +133,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     # Forward kinematics of the whole clip: the unit estimate needs every frame (below).
     with np.errstate(over="ignore", invalid="ignore"):  # absurd values are reported just below
         whole_rot, whole_pos = forward_kinematics(clip)
-    if not (np.isfinite(whole_pos).all() and np.abs(whole_pos).max(initial=0.0) < _ABSURD_LENGTH):
+    # One pass: the largest magnitude is NaN or infinite when any value is.
+    if not np.abs(whole_pos).max(initial=0.0) < _ABSURD_LENGTH:
         raise ClipReadError(
             f"clip {clip.name!r}: joint positions reach {np.nanmax(np.abs(whole_pos)):.3g} units, "
             "beyond any unit of length",
@@ -181,11 +184,20 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
             f"length unit guessed: {meters_per_unit:.4g} m per unit; set `skeleton.units` to be sure"
         )
     positions = root.positions(world_pos) @ ground.T * meters_per_unit  # (F, 2) metres
-    forward = facing.vectors(world_rot, world_pos) @ ground.T  # (F, 2)
+    facing_vectors = facing.vectors(world_rot, world_pos)
+    forward = facing_vectors @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
-    cycle = detect_cycle(used, settings, (world_rot, world_pos))  # reuses this FK, the costly part
+    posed = (world_rot, world_pos)  # this FK is reused below, not computed again
+    # The foot signal the gait cycle and the sway removal both read, computed once. On the whole
+    # clip its up axis and facing are the ones found above; a range reads its own up axis (as
+    # `foot_signal` would), and so its own facing.
+    whole = used is clip
+    found = foot_signal(
+        used, settings, posed, up_axis=up_axis if whole else None, facing=facing_vectors if whole else None
+    )
+    cycle = detect_cycle(used, settings, posed, found=found)
     # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
-    heading = sway_free(heading, used, settings, (world_rot, world_pos), cycle, positions)
+    heading = sway_free(heading, used, settings, posed, cycle, positions, found=found)
     features = _features(positions, heading, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     contacts = clip_contacts(used, settings, world_pos, meters_per_unit=meters_per_unit, up_axis=up_axis)
@@ -219,10 +231,23 @@ def skeleton_key(clip: Clip) -> str:
 
     Clips sharing it were exported from one rig, so they must read the same up axis and unit.
     """
+    rest = np.asarray(clip.skeleton.rest_translations, dtype=np.float64)
+    # Printing the offsets costs more than the rest of a small clip's detection: a library's
+    # clips share a few rigs, so the key is remembered per exact rig.
+    names, parents = clip.skeleton.names, clip.skeleton.parents
+    if isinstance(names, tuple) and isinstance(parents, tuple):
+        return _skeleton_key(names, parents, rest.shape, rest.tobytes())
+    return _skeleton_key.__wrapped__(names, parents, rest.shape, rest.tobytes())  # lists: not hashable
+
+
+@lru_cache(maxsize=1024)
+def _skeleton_key(
+    names: tuple[str, ...], parents: tuple[int, ...], shape: tuple[int, ...], rest: bytes
+) -> str:
     offsets = np.array2string(
-        np.asarray(clip.skeleton.rest_translations, dtype=np.float64), precision=4, floatmode="maxprec"
+        np.frombuffer(rest, dtype=np.float64).reshape(shape), precision=4, floatmode="maxprec"
     )
-    text = repr((clip.skeleton.names, clip.skeleton.parents)) + offsets
+    text = repr((names, parents)) + offsets
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -252,10 +277,10 @@ def steady_span(
     lengths = np.diff(ups)
     speeds = np.linalg.norm(np.diff(at, axis=0), axis=1) / lengths
     faster = np.sort(speeds)[len(speeds) // 2 :]
-    reference = float(np.median(faster))
+    reference = stats.median(faster)
     if reference <= 0.0:
         return None
-    typical = float(np.median(lengths))
+    typical = stats.median(lengths)
     steady = (np.abs(speeds - reference) <= _STEADY_SPEED_TOLERANCE * reference) & (
         np.abs(lengths - typical) <= _STEADY_PERIOD_TOLERANCE * typical
     )
@@ -275,16 +300,19 @@ def steady_span(
     return first, min(last, len(ground) - 1) + 1
 
 
+@lru_cache(maxsize=16)
 def _ground_basis(up_axis: str) -> FloatArray:
     """Rows e1, e2 spanning the ground with e1 x e2 = up, so atan2(e2, e1) grows counter-clockwise
-    seen from above: a left turn is positive."""
+    seen from above: a left turn is positive. Remembered per axis (read-only)."""
     # For Y up: (Z, X); for Z up: (X, Y); the others are these turned to their axis.
     up = up_vector(up_axis)
     axis = int(np.argmax(np.abs(up)))
     first = np.zeros(3)
     first[(axis + 1) % 3] = 1.0
     second = np.cross(up, first)
-    return np.array([first, second])
+    basis = np.array([first, second])
+    basis.flags.writeable = False
+    return basis
 
 
 def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[str, float]:

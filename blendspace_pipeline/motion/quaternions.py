@@ -20,15 +20,12 @@ def multiply(a: FloatArray, b: FloatArray) -> FloatArray:
     """Hamilton product ``a * b`` (apply ``b`` first, then ``a``)."""
     ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    product: FloatArray = np.stack(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ],
-        axis=-1,
-    )
+    # Written into one array (np.stack would copy four temporaries; same sums, same order).
+    product: FloatArray = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)), dtype=np.result_type(a, b))
+    product[..., 0] = aw * bx + ax * bw + ay * bz - az * by
+    product[..., 1] = aw * by - ax * bz + ay * bw + az * bx
+    product[..., 2] = aw * bz + ax * by - ay * bx + az * bw
+    product[..., 3] = aw * bw - ax * bx - ay * by - az * bz
     return product
 
 
@@ -44,10 +41,24 @@ def normalize(q: FloatArray) -> FloatArray:
 
 def rotate(q: FloatArray, v: FloatArray) -> FloatArray:
     """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4)."""
-    u = q[..., :3]
-    w = q[..., 3:4]
-    t = 2.0 * _cross(u, v)
-    return np.asarray(v + w * t + _cross(u, t), dtype=np.float64)
+    # v + w t + u x t with t = 2 u x v, written out per component: numpy's loops over an inner
+    # axis of 3 (and the (..., 1) scalar part broadcast over it) cost more than the arithmetic.
+    # The same products and sums in the same order, so the same values.
+    ux, uy, uz, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+    tx = 2.0 * (uy * vz - uz * vy)
+    ty = 2.0 * (uz * vx - ux * vz)
+    tz = 2.0 * (ux * vy - uy * vx)
+    rotated: FloatArray = np.empty((*np.broadcast_shapes(np.shape(q)[:-1], np.shape(v)[:-1]), 3))
+    rotated[..., 0] = vx + w * tx + (uy * tz - uz * ty)
+    rotated[..., 1] = vy + w * ty + (uz * tx - ux * tz)
+    rotated[..., 2] = vz + w * tz + (ux * ty - uy * tx)
+    return rotated
+
+
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.cross(a, b)`` of 3-vectors (broadcasting), the same products in the same order."""
+    return _cross(a, b)
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -55,7 +66,24 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     # forward kinematics passes per joint.
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx], axis=-1)
+    product: FloatArray = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)), dtype=np.result_type(a, b))
+    product[..., 0] = ay * bz - az * by
+    product[..., 1] = az * bx - ax * bz
+    product[..., 2] = ax * by - ay * bx
+    return product
+
+
+def vector_norm(v: FloatArray) -> FloatArray:
+    """``np.linalg.norm(v, axis=-1)`` for 2- and 3-vectors, written out: numpy's reduction over so
+    short an axis costs several times the arithmetic. The squares are summed in numpy's own order
+    (first plus second, plus third), so the result is the same to the last bit."""
+    squares = v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1]
+    if v.shape[-1] == 3:
+        squares = squares + v[..., 2] * v[..., 2]
+    elif v.shape[-1] != 2:
+        raise ValueError(f"vector_norm: 2- or 3-vectors expected, not {v.shape[-1]}")
+    norm: FloatArray = np.sqrt(squares)
+    return norm
 
 
 def from_axis_angle(axis: FloatArray, angle: FloatArray | float) -> FloatArray:

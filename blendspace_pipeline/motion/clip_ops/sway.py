@@ -12,10 +12,17 @@ from typing import Literal
 
 import numpy as np
 
+from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip
-from blendspace_pipeline.motion.clip_ops.phase import GaitCycle, detect_cycle, foot_signal
+from blendspace_pipeline.motion.clip_ops.phase import (
+    COMPUTE,
+    FootSignal,
+    GaitCycle,
+    detect_cycle,
+    foot_signal,
+)
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.motion.quaternions import FloatArray, vector_norm
 
 
 def sway_free(
@@ -25,18 +32,21 @@ def sway_free(
     posed: tuple[FloatArray, FloatArray],
     cycle: GaitCycle | Literal["detect"] | None = "detect",
     positions: FloatArray | None = None,
+    *,
+    found: FootSignal | Literal["compute"] = COMPUTE,
 ) -> FloatArray:
     """The hip-line ``heading`` (radians, per frame) of ``clip`` without the pelvis sway.
 
     ``posed`` is the clip's forward kinematics, ``cycle`` its `detect_cycle` when the caller has
     it ("detect": find it here when the strides alone do not tell the period), ``positions`` the root's ground path (any unit) for the fallback's standing ends. With a
     stride to go by, the sway is taken out by `remove_stride_sway`; without one the heading is
-    returned as it is (no gait, no stride-tied sway).
+    returned as it is (no gait, no stride-tied sway). ``found``: `phase.foot_signal`'s answer for
+    ``clip`` when the caller has it.
     """
-    strides = stride_starts(clip, settings, posed)
+    strides = stride_starts(clip, settings, posed, found=found)
     if cycle == "detect":
         few = strides is None or len(strides[0]) < 3
-        cycle = detect_cycle(clip, settings, posed) if few else None
+        cycle = detect_cycle(clip, settings, posed, found=found) if few else None
     period = _sway_period(strides[0] if strides is not None else None, cycle, clip.fps)
     if period is None:
         return heading
@@ -178,7 +188,7 @@ def _still_ends(positions: FloatArray, fps: float, period: float) -> tuple[bool,
     than a quarter of its average speed there (a take that starts or ends standing)."""
     frames = len(positions)
     reach = int(min(frames - 1, max(1, round(0.5 * period * fps))))
-    path = float(np.linalg.norm(np.diff(positions, axis=0), axis=1).sum())
+    path = float(vector_norm(np.diff(positions, axis=0)).sum())
     if path <= 0.0:
         return True, True
     typical = path / (frames - 1) * reach
@@ -208,17 +218,22 @@ _STRIDE_SPREAD = 0.35
 
 
 def stride_starts(
-    clip: Clip, settings: RigSettings, posed: tuple[FloatArray, FloatArray]
+    clip: Clip,
+    settings: RigSettings,
+    posed: tuple[FloatArray, FloatArray],
+    *,
+    found: FootSignal | Literal["compute"] = COMPUTE,
 ) -> tuple[FloatArray, FloatArray] | None:
     """(fractional frames where the left foot passes the right one going forward along the
     hip-line facing, one per stride; the foot signal centred on its median). None for a rig
-    without recognisable legs."""
-    found = foot_signal(clip, settings, posed)
+    without recognisable legs. ``found``: `phase.foot_signal`'s answer when the caller has it."""
+    if isinstance(found, str):
+        found = foot_signal(clip, settings, posed)
     if found is None:
         return None
     signal = found[0]
-    centred = signal - np.median(signal)
-    amplitude = float(np.percentile(np.abs(centred), 95))
+    centred = signal - stats.median(signal)
+    amplitude = stats.percentile(np.abs(centred), 95)
     if amplitude <= 0.0:
         return None
     return _upward_crossings(centred, 0.25 * amplitude), centred
@@ -226,15 +241,20 @@ def stride_starts(
 
 def _upward_crossings(signal: FloatArray, hysteresis: float) -> FloatArray:
     """Fractional frames where ``signal`` crosses zero going up after having been below
-    ``-hysteresis`` (wiggles smaller than that are not steps)."""
-    below = signal < -hysteresis
-    ups = []
-    armed = False
-    for i in range(1, len(signal)):
-        if below[i - 1]:
-            armed = True
-        a, b = float(signal[i - 1]), float(signal[i])
-        if armed and a < 0.0 <= b:
-            ups.append(i - 1 + a / (a - b) if a != b else float(i))
-            armed = False
-    return np.array(ups, dtype=np.float64)
+    ``-hysteresis`` (wiggles smaller than that are not steps).
+
+    Vectorised: a step from a negative frame to a non-negative one is a crossing when the signal
+    went below ``-hysteresis`` somewhere since the previous such step (or the start).
+    """
+    count = len(signal)
+    if count < 2:
+        return np.zeros(0)
+    a, b = signal[:-1], signal[1:]
+    steps = np.nonzero((a < 0.0) & (b >= 0.0))[0]  # step k: frame k to frame k + 1
+    below = np.concatenate([[0], np.cumsum(signal < -hysteresis)])  # below[k]: frames < k below
+    since = np.concatenate([[0], steps[:-1] + 1])  # the frame after the previous step's start
+    armed = steps[below[steps + 1] - below[since] > 0]
+    a, b = a[armed], b[armed]
+    same = a == b
+    ups: FloatArray = np.where(same, armed + 1.0, armed + a / np.where(same, -1.0, a - b))
+    return ups.astype(np.float64)
