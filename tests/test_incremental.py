@@ -1,0 +1,120 @@
+"""Incremental rebuilds: what an edit does not touch comes from the cache, and the result is
+the same, byte for byte, as a cold build of the edited set."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion.procedural import SAMPLE_SET, GaitSpec, generate_planted
+from blendspace_pipeline.pipeline import blend_quality
+from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+MANIFEST = (
+    "schema_version: 1\nname: planted\nclips:\n  - path: clips/*.usda\n"
+    "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 100}\n"
+    "  y: {feature: speed, min: -3, max: 6, divisions: 90}\n"
+    "output: {formats: [json, usd, html, png]}\n"
+)
+DOCUMENTS = ("planted.blendspace.json", "planted.blendspace.usda", "planted.report.html")
+
+
+def _write(folder: Path, spec: GaitSpec) -> None:
+    path = folder / "clips" / f"{spec.name}.usda"
+    write_usd_clip(generate_planted(spec), path, meters_per_unit=1.0, up_axis="y")
+
+
+def _project(folder: Path) -> Path:
+    for spec in SAMPLE_SET:
+        _write(folder, spec)
+    manifest = folder / "manifest.yaml"
+    manifest.write_text(MANIFEST, encoding="utf-8")
+    return manifest
+
+
+class Plays:
+    """Counts the grid points whose blend is really played (cache misses)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.count = 0
+        play = blend_quality.play
+
+        def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+            self.count += 1
+            return play(*args, **kwargs)
+
+        monkeypatch.setattr(blend_quality, "play", counting)
+
+
+def _build(manifest: Path, out: Path, cache: Path | str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(cache))
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+
+
+def _skate(out: Path) -> object:
+    return json.loads((out / "planted.blendspace.json").read_text(encoding="utf-8"))["blend_quality"]
+
+
+def _same_outputs(a: Path, b: Path) -> None:
+    for name in DOCUMENTS:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    oiio = pytest.importorskip("OpenImageIO")
+    pixels = [oiio.ImageBuf(str(folder / "planted.png")).get_pixels() for folder in (a, b)]
+    assert np.array_equal(pixels[0], pixels[1])
+
+
+def test_foot_skate_from_the_cache_equals_a_cold_computation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    manifest = _project(tmp_path / "project")
+    cache = tmp_path / "cache"
+    plays = Plays(monkeypatch)
+    _build(manifest, tmp_path / "project" / "first", cache, monkeypatch)
+    played = plays.count
+    assert played > 3  # the set's grid has points to play
+    assert list((cache / "skate").rglob("*.json"))
+    _build(manifest, tmp_path / "project" / "warm", cache, monkeypatch)
+    assert plays.count == played  # every point came from the cache
+    _build(manifest, tmp_path / "project" / "cold", "off", monkeypatch)
+    assert plays.count == 2 * played  # no cache: every point played again
+    assert _skate(tmp_path / "project" / "warm") == _skate(tmp_path / "project" / "cold")
+    skate = [v for row in _skate(tmp_path / "project" / "cold")["foot_skate"] for v in row]  # type: ignore[index]
+    assert any(v is not None for v in skate)
+
+
+def test_one_clip_edited_replays_only_its_blends_and_equals_a_cold_build(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    project = tmp_path / "project"
+    manifest = _project(project)
+    cache = tmp_path / "cache"
+    plays = Plays(monkeypatch)
+    _build(manifest, project / "out", cache, monkeypatch)
+    full = plays.count
+    # A faster strafe: the clip moves on the grid, the blends that involve it change.
+    _write(project, GaitSpec("strafe_left", speed=1.5, direction=90.0, duration=1.0, stride_length=1.2))
+    plays.count = 0
+    _build(manifest, project / "out", cache, monkeypatch)
+    assert 0 < plays.count < full  # only the points whose blend involves the edited clip
+    # A cold build of the edited set (empty cache) into a folder of the same depth.
+    _build(manifest, project / "cold", tmp_path / "fresh-cache", monkeypatch)
+    _same_outputs(project / "out", project / "cold")
+
+
+def test_a_corrupt_cache_entry_is_computed_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    manifest = _project(tmp_path / "project")
+    cache = tmp_path / "cache"
+    _build(manifest, tmp_path / "project" / "first", cache, monkeypatch)
+    entries = sorted((cache / "skate").rglob("*.json"))
+    for entry in entries:
+        entry.write_text('{"foot_sliding": "fast"}' if entries.index(entry) % 2 else "{", encoding="utf-8")
+    plays = Plays(monkeypatch)
+    _build(manifest, tmp_path / "project" / "again", cache, monkeypatch)
+    assert plays.count > 0
+    assert _skate(tmp_path / "project" / "again") == _skate(tmp_path / "project" / "first")
+    assert os.path.getsize(entries[0]) > 5  # rewritten
