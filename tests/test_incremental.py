@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -118,3 +120,14 @@ def test_a_corrupt_cache_entry_is_computed_again(tmp_path: Path, monkeypatch: py
     assert plays.count > 0
     assert _skate(tmp_path / "project" / "again") == _skate(tmp_path / "project" / "first")
     assert os.path.getsize(entries[0]) > 5  # rewritten
+
+
+def test_the_build_pipeline_imports_no_heavy_module_before_a_stage_needs_it() -> None:
+    # USD (pxr), scipy.spatial and OpenImageIO cost a second of start-up together: a build that
+    # writes no generated clip, or a `check`, must not pay for them at import.
+    code = (
+        "import sys, blendspace_pipeline.pipeline.outputs, blendspace_pipeline.commands.check\n"
+        "print(sorted(m for m in ('pxr', 'scipy.spatial', 'OpenImageIO') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
