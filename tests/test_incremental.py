@@ -3,6 +3,7 @@ the same, byte for byte, as a cold build of the edited set."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import subprocess
@@ -14,7 +15,7 @@ import pytest
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.procedural import SAMPLE_SET, GaitSpec, generate_planted
-from blendspace_pipeline.pipeline import blend_quality
+from blendspace_pipeline.pipeline import blend_quality, stamp
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 MANIFEST = (
@@ -131,3 +132,33 @@ def test_the_build_pipeline_imports_no_heavy_module_before_a_stage_needs_it() ->
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
+
+
+def test_a_stamp_rehashes_only_the_files_whose_stat_moved(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    files = [tmp_path / f"clip_{i}.bvh" for i in range(20)]
+    for i, path in enumerate(files):
+        path.write_text(f"clip {i}\n", encoding="utf-8")
+    hashed: list[Path] = []
+    digest = stamp.content_digest
+
+    def counting(path: Path) -> str:
+        hashed.append(path)
+        return digest(path)
+
+    monkeypatch.setattr(stamp, "content_digest", counting)
+    key = stamp.invocation_key("build", [tmp_path / "manifest.yaml"], {})
+    stamp.record(key, files, [], "", 0)
+    assert len(hashed) == len(files)
+    hashed.clear()
+    files[3].write_text("clip 3, edited\n", encoding="utf-8")
+    os.utime(files[3], ns=(1, 10**18))  # a stat that surely moved
+    stamp.record(key, files, [], "", 0)
+    assert hashed == [files[3]]
+    recorded = json.loads((tmp_path / "cache" / "stamps" / f"{key}.json").read_text(encoding="utf-8"))
+    by_path = {entry["path"]: entry["sha256"] for entry in recorded["inputs"]}
+    for path in files:
+        assert by_path[str(path)] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert stamp.replay(key) == 0
