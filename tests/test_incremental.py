@@ -13,9 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from blendspace_pipeline import report
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.procedural import SAMPLE_SET, GaitSpec, generate_planted
-from blendspace_pipeline.pipeline import blend_quality, stamp
+from blendspace_pipeline.pipeline import blend_quality, outputs, stamp
+from blendspace_pipeline.writers import usd_blendspace
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 MANIFEST = (
@@ -162,3 +164,70 @@ def test_a_stamp_rehashes_only_the_files_whose_stat_moved(
     for path in files:
         assert by_path[str(path)] == hashlib.sha256(path.read_bytes()).hexdigest()
     assert stamp.replay(key) == 0
+
+
+class Writes:
+    """Counts the document writers really called (their outputs not taken from the last build)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.names: list[str] = []
+        for module, name in (
+            (report, "write_png"),
+            (report, "write_html_report"),
+            (usd_blendspace, "write_usd_blendspace"),
+        ):
+            monkeypatch.setattr(module, name, self._counting(name, getattr(module, name)))
+
+    def _counting(self, name: str, writer):  # type: ignore[no-untyped-def]
+        def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+            self.names.append(name)
+            return writer(*args, **kwargs)
+
+        return counting
+
+    def take(self) -> list[str]:
+        names, self.names = sorted(self.names), []
+        return names
+
+
+ALL_WRITERS = ["write_html_report", "write_png", "write_usd_blendspace"]
+
+
+def test_outputs_are_written_only_when_what_they_are_made_of_changed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    # The report's date is otherwise the newest input's mtime: editing the manifest below would
+    # (rightly) write the report again for its new date.
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    project = tmp_path / "project"
+    manifest = _project(project)
+    out = project / "out"
+    writes = Writes(monkeypatch)
+    outputs.build(manifest, out, fix=False)  # `build` without the stamp: every stage runs
+    assert writes.take() == ALL_WRITERS
+    first = {name: (out / name).read_bytes() for name in (*DOCUMENTS, "planted.png")}
+    outputs.build(manifest, out, fix=False)
+    assert writes.take() == []  # nothing they depend on moved
+    # A deleted output (its link) and a hand-edited one (through its link) are written again.
+    (out / "planted.png").unlink()
+    with (out / "planted.blendspace.usda").open("a", encoding="utf-8") as stream:
+        stream.write("# edited by hand\n")
+    outputs.build(manifest, out, fix=False)
+    assert writes.take() == ["write_usd_blendspace"]
+    assert {name: (out / name).read_bytes() for name in first} == first
+    # The formats list: dropping PNG writes nothing and removes it; adding it back writes PNG only.
+    manifest.write_text(MANIFEST.replace("json, usd, html, png", "json, usd, html"), encoding="utf-8")
+    outputs.build(manifest, out, fix=False)
+    assert writes.take() == []
+    assert not (out / "planted.png").exists()
+    manifest.write_text(MANIFEST, encoding="utf-8")
+    outputs.build(manifest, out, fix=False)
+    assert writes.take() == ["write_png"]
+    assert {name: (out / name).read_bytes() for name in first} == first
+    # An edited clip changes the document: every output is written again, equal to a cold build.
+    _write(project, GaitSpec("walk_fwd", speed=1.6, duration=1.0))
+    outputs.build(manifest, out, fix=False)
+    assert writes.take() == ALL_WRITERS
+    outputs.build(manifest, project / "cold", fix=False)
+    _same_outputs(out, project / "cold")

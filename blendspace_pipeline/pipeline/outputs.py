@@ -30,7 +30,10 @@ previous generation (`OUT/.blendspace/N/current/<file>`) into the staging folder
 from __future__ import annotations
 
 import errno
+import filecmp
+import functools
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -41,6 +44,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
@@ -118,6 +122,88 @@ def _writers(space: BlendSpace) -> dict[str, tuple[str, Callable[[BlendSpaceDocu
         "html": (".report.html", html),
         "png": (".png", png),
     }
+
+
+# Bumped whenever a writer would write other bytes for the same document (in a release the
+# version changes too; the package's own source files are digested as well, see `_code_digest`).
+OUTPUT_REVISION = 1
+RECORD = ".outputs.json"  # in each generation: per output file, its inputs' digest and file facts
+# Libraries whose version changes what a writer writes.
+_WRITER_LIBRARIES = {"usd": ("usd-core",), "png": ("OpenImageIO", "numpy"), "html": ("numpy",), "json": ()}
+
+
+def _output_inputs(name: str, file_name: str, document_digest: str, space: BlendSpace) -> str:
+    """Digest of everything output ``name`` is made of: the document, the writer and its code."""
+    parts: list[object] = [name, file_name, document_digest, __version__, OUTPUT_REVISION, _code_digest()]
+    parts += [_library_version(library) for library in _WRITER_LIBRARIES.get(name, ())]
+    if name == "html":
+        from blendspace_pipeline.report.html import build_stamp
+
+        parts.append(build_stamp(input_files(space)))  # the report's one clock
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+
+@functools.cache
+def _code_digest() -> str:
+    """Size and mtime of every source file of the package: a checkout of other writer code under
+    the same version (a developer's tree) writes the outputs again."""
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        info = path.stat()
+        digest.update(f"{path.relative_to(root).as_posix()}|{info.st_size}|{info.st_mtime_ns}\n".encode())
+    return digest.hexdigest()
+
+
+@functools.cache
+def _library_version(name: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"{name}=={version(name)}"
+    except PackageNotFoundError:
+        return f"{name} (not installed)"
+
+
+def _file_facts(path: Path) -> dict[str, object]:
+    info = path.stat()
+    return {"size": info.st_size, "mtime_ns": info.st_mtime_ns, "sha256": _file_digest(path)}
+
+
+def _file_digest(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _read_record(path: Path) -> dict[str, dict[str, object]]:
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return record if isinstance(record, dict) else {}
+
+
+def _reuse(previous: Path, known: dict[str, object], target: Path) -> bool:
+    """Link (else copy) the previous generation's file to ``target`` when it is still the file we
+    wrote: same size and mtime, or, where the stat moved, the same bytes. A deleted or hand-edited
+    output is written again."""
+    try:
+        info = previous.stat()
+        if info.st_size != known.get("size"):
+            return False
+        if info.st_mtime_ns != known.get("mtime_ns") and _file_digest(previous) != known.get("sha256"):
+            return False
+        try:
+            os.link(previous, target)
+        except OSError:  # no hard links on this file system
+            shutil.copy2(previous, target)
+    except OSError:
+        target.unlink(missing_ok=True)
+        return False
+    return True
 
 
 def write_outputs(
@@ -198,14 +284,35 @@ def _write_outputs(
                 if name in in_space:
                     for path in write_generated_clip(sub, state.generated[name], staging / folder):
                         staged.append(path.relative_to(staging))
+        for relative in staged:
+            verify_written(staging / relative)
+        # Each document output is written only when what it is made of changed (`_output_inputs`);
+        # otherwise the previous generation's file, checked to be the one written, is linked in.
         writers = _writers(space)
+        home = out_dir / GENERATIONS / safe_file_stem(space.name)
+        previous = _read_record(home / CURRENT / RECORD)
+        text = document.model_dump_json(indent=2) + "\n"
+        document_digest = hashlib.sha256(text.encode()).hexdigest()
+        record: dict[str, dict[str, object]] = {}
         for name in formats:
             suffix, writer = writers[name]
             file_name = f"{space.name}{suffix}"
-            writer(document, staging / file_name)
+            target = staging / file_name
+            inputs = _output_inputs(name, file_name, document_digest, space)
+            known = previous.get(file_name)
+            if (
+                known is None
+                or known.get("inputs") != inputs
+                or not _reuse(home / CURRENT / file_name, known, target)
+            ):
+                if name == "json":
+                    target.write_text(text, encoding="utf-8")  # the text digested above
+                else:
+                    writer(document, target)
+                verify_written(target)
+            record[file_name] = {"inputs": inputs, **_file_facts(target)}
             staged.append(Path(file_name))
-        for relative in staged:
-            verify_written(staging / relative)
+        (staging / RECORD).write_text(json.dumps(record, sort_keys=True), encoding="utf-8")
         publish(staging, out_dir, safe_file_stem(space.name), staged)
         return document, [out_dir / relative for relative in staged]
     except BaseException:
@@ -280,6 +387,8 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> N
     generation = f"g-{_content_hash(staging, files)}"
     if not (home / generation).is_dir():
         os.replace(staging, home / generation)
+    else:
+        _refresh(staging, home / generation, files)
     documents = [relative for relative in files if relative.parent == Path(".")]
     # Generated clips are real files (hard links into the generation, else copies): engines import
     # them as assets (Unity does not support symlinked assets) and exporters resolve their paths,
@@ -302,6 +411,22 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> N
     for old in home.glob("g-*"):
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
+    """An identical build's generation already exists: a file in it that is not what this build
+    wrote (edited by hand through its link, deleted) is replaced, each in one rename."""
+    for relative in files:
+        new, old = staging / relative, generation / relative
+        try:
+            if os.path.samefile(new, old) or filecmp.cmp(new, old, shallow=False):
+                continue
+        except OSError:
+            pass
+        old.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(new, old)
+    if (staging / RECORD).is_file():
+        os.replace(staging / RECORD, generation / RECORD)
 
 
 def _place(source: Path, target: Path) -> None:
