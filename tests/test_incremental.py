@@ -8,12 +8,14 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from blendspace_pipeline import report
+from blendspace_pipeline.checks import rule_engine
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.procedural import SAMPLE_SET, GaitSpec, generate_planted
 from blendspace_pipeline.pipeline import analysis, blend_quality, measure_stage, outputs, stamp
@@ -255,3 +257,27 @@ def test_cached_clips_are_answered_without_worker_processes(
     assert [by_name[s.name] for s in first.samples if s.name != "walk_fwd"] == [
         s.clip.measurement for s in first.samples if s.name != "walk_fwd"
     ]
+
+
+def test_rule_runs_share_sample_views_of_the_same_clips_only(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "project")
+    space = analysis.analyse(manifest, converge=False)
+    first = rule_engine.space_view(space)
+    again = rule_engine.space_view(space)
+    assert all(a is b for a, b in zip(first.samples, again.samples, strict=True))
+    # A measurement replaced (not edited in place: measurements are values) gets a new view.
+    clip = space.samples[0].clip
+    clip.measurement = replace(clip.measurement, features={**clip.measurement.features, "speed": 9.5})
+    changed = rule_engine.space_view(space)
+    assert changed.samples[0] is not again.samples[0]
+    assert changed.samples[0].features["speed"] == 9.5
+    assert all(a is b for a, b in zip(changed.samples[1:], again.samples[1:], strict=True))
+    # Placeholder simulations with shared views find exactly what fresh views find.
+    shared = analysis.analyse(manifest)
+    monkeypatch.setattr(rule_engine, "_same", lambda a, b: False)
+    fresh = analysis.analyse(manifest)
+    assert shared.diagnostics == fresh.diagnostics
+    assert shared.placeholders == fresh.placeholders

@@ -23,8 +23,16 @@ A failure before the switch leaves the previous documents untouched (and removes
 build created); only a failure between placing the clips and the switch leaves new clips beside
 the previous documents. Staging folders of killed builds (their pid no longer runs) are removed by the next
 build. Where symlinks cannot be made (Windows without developer mode) the files are moved into
-place one by one as before. A writer that wants to skip an unchanged output can copy it from the
-previous generation (`OUT/.blendspace/N/current/<file>`) into the staging folder.
+place one by one as before.
+
+Unchanged outputs are not written again: each document output's inputs (the document's JSON,
+the format, the tool version and source files, the writing libraries' versions, the report's
+date) are digested, and the record of the current generation (in the cache folder, `outputs/`,
+so the output folder holds only what is published) says which digest each file was written from
+and its size, mtime and SHA-256. When the digest matches and the previous file is still the one
+written (same stat, or same bytes where the stat moved), it is hard-linked into the staging folder
+instead of written; a deleted or hand-edited output is written again. An identical generation
+that already exists gets any file that differs from this build's replaced.
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
+from blendspace_pipeline.pipeline.cache import cache_dir, write_atomic
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
@@ -127,7 +136,6 @@ def _writers(space: BlendSpace) -> dict[str, tuple[str, Callable[[BlendSpaceDocu
 # Bumped whenever a writer would write other bytes for the same document (in a release the
 # version changes too; the package's own source files are digested as well, see `_code_digest`).
 OUTPUT_REVISION = 1
-RECORD = ".outputs.json"  # in each generation: per output file, its inputs' digest and file facts
 # Libraries whose version changes what a writer writes.
 _WRITER_LIBRARIES = {"usd": ("usd-core",), "png": ("OpenImageIO", "numpy"), "html": ("numpy",), "json": ()}
 
@@ -165,9 +173,55 @@ def _library_version(name: str) -> str:
         return f"{name} (not installed)"
 
 
-def _file_facts(path: Path) -> dict[str, object]:
-    info = path.stat()
-    return {"size": info.st_size, "mtime_ns": info.st_mtime_ns, "sha256": _file_digest(path)}
+def _record_path(home: Path) -> Path | None:
+    """Where the record of ``home``'s outputs lives: in the cache folder, not the output folder,
+    which holds only what the build publishes (two builds' folders stay byte-identical)."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    return folder / "outputs" / f"{hashlib.sha256(str(home.absolute()).encode()).hexdigest()[:32]}.json"
+
+
+def _read_record(home: Path) -> dict[str, dict[str, object]]:
+    """Per output file of ``home``'s current generation: its inputs' digest, size, mtime, SHA-256.
+    Empty when there is none, or it describes another generation than the current one."""
+    path = _record_path(home)
+    try:
+        current = os.readlink(home / CURRENT)
+        record = json.loads(path.read_text(encoding="utf-8")) if path is not None else None
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(record, dict) or record.get("generation") != current:
+        return {}
+    files = record.get("files")
+    return files if isinstance(files, dict) else {}
+
+
+def _write_record(
+    home: Path, generation: str, inputs_of: dict[str, str], previous: dict[str, dict[str, object]]
+) -> None:
+    """Record the published files as they lie in ``generation`` (a file reused from the previous
+    one keeps its digest when its stat did not move: only new files are hashed)."""
+    path = _record_path(home)
+    if path is None:
+        return
+    files: dict[str, dict[str, object]] = {}
+    for name, inputs in inputs_of.items():
+        target = home / generation / name
+        try:
+            info = target.stat()
+            known = previous.get(name)
+            if known is not None and (known.get("size"), known.get("mtime_ns")) == (
+                info.st_size,
+                info.st_mtime_ns,
+            ):
+                digest = str(known.get("sha256"))
+            else:
+                digest = _file_digest(target)
+        except OSError:
+            continue  # not recorded: written again next time
+        files[name] = {"inputs": inputs, "size": info.st_size, "mtime_ns": info.st_mtime_ns, "sha256": digest}
+    write_atomic(path, json.dumps({"generation": generation, "files": files}, sort_keys=True))
 
 
 def _file_digest(path: Path) -> str:
@@ -176,14 +230,6 @@ def _file_digest(path: Path) -> str:
         for block in iter(lambda: stream.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
-
-
-def _read_record(path: Path) -> dict[str, dict[str, object]]:
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return record if isinstance(record, dict) else {}
 
 
 def _reuse(previous: Path, known: dict[str, object], target: Path) -> bool:
@@ -290,10 +336,10 @@ def _write_outputs(
         # otherwise the previous generation's file, checked to be the one written, is linked in.
         writers = _writers(space)
         home = out_dir / GENERATIONS / safe_file_stem(space.name)
-        previous = _read_record(home / CURRENT / RECORD)
+        previous = _read_record(home)
         text = document.model_dump_json(indent=2) + "\n"
         document_digest = hashlib.sha256(text.encode()).hexdigest()
-        record: dict[str, dict[str, object]] = {}
+        inputs_of: dict[str, str] = {}
         for name in formats:
             suffix, writer = writers[name]
             file_name = f"{space.name}{suffix}"
@@ -310,10 +356,11 @@ def _write_outputs(
                 else:
                     writer(document, target)
                 verify_written(target)
-            record[file_name] = {"inputs": inputs, **_file_facts(target)}
+            inputs_of[file_name] = inputs
             staged.append(Path(file_name))
-        (staging / RECORD).write_text(json.dumps(record, sort_keys=True), encoding="utf-8")
-        publish(staging, out_dir, safe_file_stem(space.name), staged)
+        generation = publish(staging, out_dir, safe_file_stem(space.name), staged)
+        if generation is not None:
+            _write_record(home, generation, inputs_of, previous)
         return document, [out_dir / relative for relative in staged]
     except BaseException:
         if created:
@@ -374,14 +421,15 @@ def _symlinks_work(folder: Path) -> bool:
     return True
 
 
-def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> None:
-    """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above)."""
+def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> str | None:
+    """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above).
+    Returns the generation's folder name (None where files are moved into place, no symlinks)."""
     if not _symlinks_work(out_dir):
         for relative in files:
             target = out_dir / relative
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(staging / relative, target)
-        return
+        return None
     home = out_dir / GENERATIONS / name
     home.mkdir(parents=True, exist_ok=True)
     generation = f"g-{_content_hash(staging, files)}"
@@ -411,6 +459,7 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> N
     for old in home.glob("g-*"):
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
+    return generation
 
 
 def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
@@ -425,8 +474,6 @@ def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
             pass
         old.parent.mkdir(parents=True, exist_ok=True)
         os.replace(new, old)
-    if (staging / RECORD).is_file():
-        os.replace(staging / RECORD, generation / RECORD)
 
 
 def _place(source: Path, target: Path) -> None:
