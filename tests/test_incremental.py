@@ -18,7 +18,7 @@ from blendspace_pipeline import report
 from blendspace_pipeline.checks import rule_engine
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.procedural import SAMPLE_SET, GaitSpec, generate_planted
-from blendspace_pipeline.pipeline import analysis, blend_quality, measure_stage, outputs, stamp
+from blendspace_pipeline.pipeline import analysis, blend_quality, outputs, stamp
 from blendspace_pipeline.writers import usd_blendspace
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
@@ -233,30 +233,6 @@ def test_outputs_are_written_only_when_what_they_are_made_of_changed(
     assert writes.take() == ALL_WRITERS
     outputs.build(manifest, project / "cold", fix=False)
     _same_outputs(out, project / "cold")
-
-
-def test_cached_clips_are_answered_without_worker_processes(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
-    manifest = _project(tmp_path / "project")
-    first = analysis.analyse(manifest, jobs=2)
-
-    class NoPool:
-        def __init__(self, *args: object, **kwargs: object) -> None:
-            raise AssertionError("a worker pool was started although every clip is cached")
-
-    monkeypatch.setattr(measure_stage, "ProcessPoolExecutor", NoPool)
-    again = analysis.analyse(manifest, jobs=2)
-    assert [s.clip.measurement for s in again.samples] == [s.clip.measurement for s in first.samples]
-    # One edited clip is measured in this process; the others still come from the cache.
-    _write(tmp_path / "project", GaitSpec("walk_fwd", speed=1.6, duration=1.0))
-    edited = analysis.analyse(manifest, jobs=2)
-    by_name = {s.name: s.clip.measurement for s in edited.samples}
-    assert by_name["walk_fwd"].features["speed"] == pytest.approx(1.6, abs=0.1)
-    assert [by_name[s.name] for s in first.samples if s.name != "walk_fwd"] == [
-        s.clip.measurement for s in first.samples if s.name != "walk_fwd"
-    ]
 
 
 def test_rule_runs_share_sample_views_of_the_same_clips_only(

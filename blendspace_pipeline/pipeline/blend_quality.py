@@ -43,6 +43,7 @@ from blendspace_pipeline.motion.measure import trim
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
+from blendspace_pipeline.pipeline.stamp import write_atomic
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
 from blendspace_pipeline.space.model import BlendSpace, Sample
@@ -197,7 +198,7 @@ def _store(key: str | None, value: float | None) -> None:
     entry = _entry(key) if key else None
     if entry is not None:
         # json writes a float's repr, which reads back to the same float.
-        cache.write_atomic(entry, json.dumps({"foot_sliding": None if value is None else float(value)}))
+        write_atomic(entry, json.dumps({"foot_sliding": None if value is None else float(value)}))
 
 
 def foot_skate_grid(

@@ -67,12 +67,11 @@ def content_digest(path: Path) -> str:
     # A file modified in the last seconds may change again within the clock's granularity with
     # the same size (git's "racy" case): it is remembered only once its mtime has settled.
     if entry is not None and time.time_ns() - info.st_mtime_ns > 2_000_000_000:
-        write_atomic(entry, value)
+        _write_atomic(entry, value)
     return value
 
 
-def write_atomic(target: Path, text: str) -> None:
-    """Write ``text`` to ``target`` in one rename; a cache folder that refuses is ignored."""
+def _write_atomic(target: Path, text: str) -> None:
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".tmp")

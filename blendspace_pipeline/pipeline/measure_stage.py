@@ -64,17 +64,6 @@ def measure_file(
     return measured
 
 
-def _cached(job: Job) -> Result | None:
-    """The cached measurements of ``job``'s file, or None (not cached, or anything unusual: the
-    job then runs as usual and reports it)."""
-    path, settings, time_range, _ = job
-    try:
-        check_regular(path, what="clip file")
-        return cache.load(cache.cache_key(path, settings.cache_key(), time_range))
-    except (InputError, OSError):
-        return None
-
-
 def _measure_job(job: Job) -> list[tuple[str, Measurement]] | InputError:
     """Worker entry: input errors travel back as values (their fields survive pickling)."""
     try:
@@ -90,29 +79,18 @@ def measure_files(
     job_list: list[Job] = [
         (f.path, rig_settings(entry_settings(top, f.entry)), _range(f.entry), loaded.directory) for f in files
     ]
-    # Cached files are answered here: worker processes (their start-up, pickling the answers back)
-    # are paid only for the files that really need reading, one edited clip after an edit.
-    found: list[Result | None] = [_cached(job) if jobs > 1 else None for job in job_list]
-    todo = [job for job, result in zip(job_list, found, strict=True) if result is None]
-    done = len(job_list) - len(todo)
-    if progress and done:
-        progress(done, len(job_list), job_list[-1][0].name)
-    measured: list[Result] = []
-    if jobs > 1 and len(todo) > 1:
+    results: list[list[tuple[str, Measurement]] | InputError] = []
+    if jobs > 1 and len(job_list) > 1:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for job, result in zip(todo, pool.map(_measure_job, todo, chunksize=8), strict=True):
-                measured.append(result)
-                done += 1
+            for done, result in enumerate(pool.map(_measure_job, job_list, chunksize=8), start=1):
+                results.append(result)
                 if progress:
-                    progress(done, len(job_list), job[0].name)
+                    progress(done, len(job_list), job_list[done - 1][0].name)
     else:
-        for job in todo:
-            measured.append(_measure_job(job))
-            done += 1
+        for done, job in enumerate(job_list, start=1):
+            results.append(_measure_job(job))
             if progress:
                 progress(done, len(job_list), job[0].name)
-    answers = iter(measured)
-    results = [result if result is not None else next(answers) for result in found]
     results = _one_answer_per_skeleton(job_list, results)
     clips: list[MeasuredClip] = []
     for resolved, result in zip(files, results, strict=True):

@@ -149,14 +149,20 @@ def record(key: str, inputs: Iterable[Path], outputs: Iterable[Path], printed: s
         "stdout": printed,
         "exit_code": exit_code,
     }
+    write_atomic(path, json.dumps(stamp))
+
+
+def write_atomic(target: Path, text: str) -> None:
+    """Write a cache folder's file in one rename; a folder that refuses (read-only, full) is
+    ignored: a cache must never fail a build."""
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".tmp")
         with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            json.dump(stamp, stream)
-        os.replace(temporary, path)
+            stream.write(text)
+        os.replace(temporary, target)
     except OSError:
-        pass  # a read-only or full cache folder must never fail a build
+        pass
 
 
 def _previous_states(path: Path) -> dict[str, FileState]:
