@@ -218,6 +218,11 @@ def test_outputs_are_written_only_when_what_they_are_made_of_changed(
     outputs.build(manifest, out, fix=False)
     assert writes.take() == ["write_usd_blendspace"]
     assert {name: (out / name).read_bytes() for name in first} == first
+    # The published file itself deleted (not just its link): written again, into the same set.
+    (out / ".blendspace" / "planted" / "current" / "planted.report.html").unlink()
+    outputs.build(manifest, out, fix=False)
+    assert writes.take() == ["write_html_report"]
+    assert {name: (out / name).read_bytes() for name in first} == first
     # The formats list: dropping PNG writes nothing and removes it; adding it back writes PNG only.
     manifest.write_text(MANIFEST.replace("json, usd, html, png", "json, usd, html"), encoding="utf-8")
     outputs.build(manifest, out, fix=False)
