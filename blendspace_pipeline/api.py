@@ -202,8 +202,17 @@ class SpaceView:
 
     def edges(self) -> list[tuple[int, int]]:
         """Every triangle edge once, as sorted sample-index pairs."""
-        found = {tuple(sorted((t[i], t[(i + 1) % 3]))) for t in self.triangles for i in range(3)}
-        return sorted((int(a), int(b)) for a, b in found)
+        return list(self._edges)
+
+    @cached_property
+    def _edges(self) -> tuple[tuple[int, int], ...]:
+        # Computed once per view (several rules walk the edges): each triangle's three edges with
+        # their ends in order, de-duplicated; np.unique sorts the rows as `sorted` sorts tuples.
+        if not self.triangles:
+            return ()
+        corners = np.asarray(self.triangles, dtype=np.int64).reshape(-1, 3)
+        pairs = np.sort(np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]]), axis=1)
+        return tuple((a, b) for a, b in np.unique(pairs, axis=0).tolist())
 
     # Vectorised views, for rules that must scale to thousands of samples: read-only numpy
     # arrays in sample order, computed once per view and shared by every rule.

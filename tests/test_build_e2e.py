@@ -201,8 +201,9 @@ def test_a_failing_writer_leaves_nothing_behind(tmp_path: Path, monkeypatch: pyt
     assert main(["build", str(manifest)]) in (0, 1)
     previous = _tree(tmp_path / "build")
     monkeypatch.setattr(report, "write_png", broken_png)
-    # An edited manifest, so the build runs again (an unchanged one replays its stamp, writing nothing).
-    manifest.write_text(manifest.read_text() + "# edited\n")
+    # An edited manifest that changes the document, so the build runs again and the PNG must be
+    # written (an unchanged one replays its stamp; an unchanged document keeps its PNG).
+    manifest.write_text(manifest.read_text() + "thresholds: {too_close: 2.5}\n")
     assert main(["build", str(manifest)]) == 2
     assert _tree(tmp_path / "build") == previous
 

@@ -5,15 +5,27 @@ poses, so every sample's clip is read again (generated clips come from the fix l
 blend is played at each grid point inside the hull (`motion.blend_model.play`). Foot skate is
 computed on every other grid point and the grid filled from its nearest computed neighbour:
 the blend changes smoothly inside a triangle, and it keeps a build's cost to a second or two.
+
+Each computed grid point is remembered in the cache folder (`pipeline.cache`, `skate/`) under a
+key of everything the number depends on: per blended sample its file's content digest, name,
+animation, trim range and the measured contacts and units (a generated clip: a digest of its
+arrays), the weights and playback rates, the rig settings, the sync mode, the tool version and
+the revisions. A rebuild after one clip was edited reads and plays only the points whose blend
+involves that clip (or whose weights moved); every other point comes from the cache unchanged,
+so the document is byte-identical to a cold build's.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import hashlib
+import json
+import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.blend_model import (
     DEFAULT_SYNC,
@@ -26,15 +38,22 @@ from blendspace_pipeline.motion.blend_model import (
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops.blend import without_rest_frame
 from blendspace_pipeline.motion.contacts import FootContacts
+from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import trim
 from blendspace_pipeline.motion.quaternions import FloatArray
+from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
+from blendspace_pipeline.pipeline.stamp import write_atomic
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
 from blendspace_pipeline.space.model import BlendSpace, Sample
 from blendspace_pipeline.space.runtime_blend import DEFAULT_GRID, RuntimeGrid, runtime_grid, sample_period
 
 SKATE_STEP = 2  # foot skate on every other grid point
+SKATE_FPS = 20.0  # ticks per second of the played blend
+# Bumped whenever the same blend would give another foot skate (play, prepare, the rest-frame
+# cut), so a cache never serves numbers of older code under an unchanged version.
+SKATE_REVISION = 1
 
 
 def _grid(values: FloatArray) -> Grid:
@@ -71,11 +90,41 @@ class PreparedSamples:
         self.generated = generated
         self.settings = rig_settings(space.manifest.model.skeleton)
         self.cache: dict[int, PreparedClip | None] = {}
+        self.keys: dict[int, str] = {}
 
     def __getitem__(self, index: int) -> PreparedClip | None:
         if index not in self.cache:
             self.cache[index] = self._prepare(self.space.samples[index])
         return self.cache[index]
+
+    def key(self, index: int) -> str:
+        """What sample ``index`` brings to a blend, without reading its clip (see the module)."""
+        if index not in self.keys:
+            self.keys[index] = self._key(self.space.samples[index])
+        return self.keys[index]
+
+    def _key(self, sample: Sample) -> str:
+        m = sample.clip.measurement
+        digest = hashlib.sha256()
+        digest.update(json.dumps([m.contacts, repr(m.meters_per_unit)], sort_keys=True).encode())
+        if sample.generated:
+            clip = self.generated.get(sample.name)
+            if clip is None:
+                digest.update(b"|missing generated clip")
+            else:
+                digest.update(f"|{clip.name}|{clip.fps!r}|{clip.meters_per_unit!r}|{clip.up_axis}|".encode())
+                digest.update(repr(clip.skeleton).encode())
+                digest.update(np.ascontiguousarray(clip.rotations, dtype=np.float64).tobytes())
+                digest.update(np.ascontiguousarray(clip.translations, dtype=np.float64).tobytes())
+            return digest.hexdigest()
+        source = sample.clip.source
+        try:
+            content = cache.content_digest(source)
+        except OSError:
+            content = "unreadable"
+        animation = str(sample.clip.extra.get("animation", sample.name))
+        digest.update(f"|{content}|{source.name}|{animation}|{sample.clip.time_range!r}".encode())
+        return digest.hexdigest()
 
     def _prepare(self, sample: Sample) -> PreparedClip | None:
         m = sample.clip.measurement
@@ -89,10 +138,74 @@ class PreparedSamples:
         return prepare(clip, self.settings, m.meters_per_unit, contacts)
 
 
+def _play_point(
+    prepared: PreparedSamples,
+    indices: Sequence[int],
+    weights: Sequence[float],
+    rates: Sequence[float],
+    settings: RigSettings,
+) -> float | None:
+    """The foot skate of one blend, or None when it cannot be played (a clip unreadable or
+    without feet) or has no planted foot."""
+    clips = [prepared[i] for i in indices]
+    if any(c is None for c in clips):
+        return None
+    played = play([c for c in clips if c is not None], weights, rates, settings, fps=SKATE_FPS)
+    return played.foot_sliding
+
+
+def _base_key(space: BlendSpace, settings_key: str, sync: SyncMode) -> str:
+    """What every point of ``space`` shares: code, settings, where references may be read from."""
+    return json.dumps(
+        [
+            __version__,
+            cache.MEASUREMENT_REVISION,
+            SKATE_REVISION,
+            SKATE_FPS,
+            settings_key,
+            sync,
+            str(space.manifest.directory),
+            os.environ.get("BLENDSPACE_MAX_FRAMES", ""),
+        ]
+    )
+
+
+def _point_key(base: str, samples: Sequence[str], weights: Sequence[float], rates: Sequence[float]) -> str:
+    # repr: exact floats, so a weight that moved in its last bit is another blend.
+    described = json.dumps([base, list(samples), [repr(w) for w in weights], [repr(r) for r in rates]])
+    return hashlib.sha256(described.encode()).hexdigest()
+
+
+def _entry(key: str) -> Path | None:
+    folder = cache.cache_dir()
+    return None if folder is None else folder / "skate" / key[:2] / f"{key}.json"
+
+
+def _load(key: str | None) -> tuple[bool, float | None]:
+    entry = _entry(key) if key else None
+    if entry is None:
+        return False, None
+    try:
+        value = json.loads(entry.read_text(encoding="utf-8"))["foot_sliding"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False, None
+    if value is None or isinstance(value, float):
+        return True, value
+    return False, None  # not what we write: computed again and rewritten
+
+
+def _store(key: str | None, value: float | None) -> None:
+    entry = _entry(key) if key else None
+    if entry is not None:
+        # json writes a float's repr, which reads back to the same float.
+        write_atomic(entry, json.dumps({"foot_sliding": None if value is None else float(value)}))
+
+
 def foot_skate_grid(
     space: BlendSpace, doc: BlendSpaceDocument, grid: RuntimeGrid, prepared: PreparedSamples
 ) -> FloatArray:
     settings = rig_settings(space.manifest.model.skeleton)
+    base = _base_key(space, settings.cache_key(), grid.sync) if cache.cache_dir() is not None else ""
     ny, nx = grid.distance.shape
     skate = np.full((ny, nx), np.nan)
     computed = np.zeros((ny, nx), dtype=bool)
@@ -100,9 +213,6 @@ def foot_skate_grid(
         for col in range(0, nx, SKATE_STEP):
             pairs = grid.weights[row * nx + col]
             if not pairs:
-                continue
-            clips = [prepared[i] for i, _ in pairs]
-            if any(c is None for c in clips):
                 continue
             weights = [w for _, w in pairs]
             samples = [doc.samples[i] for i, _ in pairs]
@@ -112,9 +222,13 @@ def foot_skate_grid(
                 [sample_period(s) for s in samples],
                 grid.sync,
             )
-            played = play([c for c in clips if c is not None], weights, rates, settings, fps=20.0)
-            if played.foot_sliding is not None:
-                skate[row, col] = played.foot_sliding
+            key = _point_key(base, [prepared.key(i) for i, _ in pairs], weights, rates) if base else None
+            found, value = _load(key)
+            if not found:
+                value = _play_point(prepared, [i for i, _ in pairs], weights, rates, settings)
+                _store(key, value)
+            if value is not None:
+                skate[row, col] = value
                 computed[row, col] = True
     if computed.any():
         from scipy.ndimage import distance_transform_edt

@@ -18,8 +18,6 @@ from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.fix_loop import GeneratedClip
 from blendspace_pipeline.readers.provenance import Provenance
 from blendspace_pipeline.space.model import BlendSpace
-from blendspace_pipeline.writers.gltf import write_gltf_clip
-from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 # The suffix of each clip format, in the order a generated sample's `source` prefers them.
 CLIP_SUFFIXES = {"usd": ".usda", "glb": ".glb", "bvh": ".bvh"}
@@ -74,6 +72,10 @@ def provenance_of(generated: GeneratedClip) -> Provenance:
 
 def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Path) -> list[Path]:
     """Write ``generated`` into ``folder``; returns the files written."""
+    # The writers load USD (pxr) and scipy: imported here, so a build without fixes does not pay.
+    from blendspace_pipeline.writers.gltf import write_gltf_clip
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
     folder.mkdir(parents=True, exist_ok=True)
     clip = generated.clip
     measured = generated.measured

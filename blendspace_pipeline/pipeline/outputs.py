@@ -23,14 +23,25 @@ A failure before the switch leaves the previous documents untouched (and removes
 build created); only a failure between placing the clips and the switch leaves new clips beside
 the previous documents. Staging folders of killed builds (their pid no longer runs) are removed by the next
 build. Where symlinks cannot be made (Windows without developer mode) the files are moved into
-place one by one as before. A writer that wants to skip an unchanged output can copy it from the
-previous generation (`OUT/.blendspace/N/current/<file>`) into the staging folder.
+place one by one as before.
+
+Unchanged outputs are not written again: each document output's inputs (the document's JSON,
+the format, the tool version and source files, the writing libraries' versions, the report's
+date) are digested, and the record of the current generation (in the cache folder, `outputs/`,
+so the output folder holds only what is published) says which digest each file was written from
+and its size, mtime and SHA-256. When the digest matches and the previous file is still the one
+written (same stat, or same bytes where the stat moved), it is hard-linked into the staging folder
+instead of written; a deleted or hand-edited output is written again. An identical generation
+that already exists gets any file that differs from this build's replaced.
 """
 
 from __future__ import annotations
 
 import errno
+import filecmp
+import functools
 import hashlib
+import json
 import os
 import re
 import shutil
@@ -41,13 +52,16 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
+from blendspace_pipeline.pipeline.cache import cache_dir
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
+from blendspace_pipeline.pipeline.stamp import write_atomic
 from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.report.atomic import verify_written
 from blendspace_pipeline.space.document import BlendSpaceDocument
@@ -118,6 +132,125 @@ def _writers(space: BlendSpace) -> dict[str, tuple[str, Callable[[BlendSpaceDocu
         "html": (".report.html", html),
         "png": (".png", png),
     }
+
+
+# Bumped whenever a writer would write other bytes for the same document (in a release the
+# version changes too; the package's own source files are digested as well, see `_code_digest`).
+OUTPUT_REVISION = 1
+# Libraries whose version changes what a writer writes.
+_WRITER_LIBRARIES = {"usd": ("usd-core",), "png": ("OpenImageIO", "numpy"), "html": ("numpy",), "json": ()}
+
+
+def _output_inputs(name: str, file_name: str, document_digest: str, space: BlendSpace) -> str:
+    """Digest of everything output ``name`` is made of: the document, the writer and its code."""
+    parts: list[object] = [name, file_name, document_digest, __version__, OUTPUT_REVISION, _code_digest()]
+    parts += [_library_version(library) for library in _WRITER_LIBRARIES.get(name, ())]
+    if name == "html":
+        from blendspace_pipeline.report.html import build_stamp
+
+        parts.append(build_stamp(input_files(space)))  # the report's one clock
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+
+@functools.cache
+def _code_digest() -> str:
+    """Size and mtime of every source file of the package: a checkout of other writer code under
+    the same version (a developer's tree) writes the outputs again."""
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        info = path.stat()
+        digest.update(f"{path.relative_to(root).as_posix()}|{info.st_size}|{info.st_mtime_ns}\n".encode())
+    return digest.hexdigest()
+
+
+@functools.cache
+def _library_version(name: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"{name}=={version(name)}"
+    except PackageNotFoundError:
+        return f"{name} (not installed)"
+
+
+def _record_path(home: Path) -> Path | None:
+    """Where the record of ``home``'s outputs lives: in the cache folder, not the output folder,
+    which holds only what the build publishes (two builds' folders stay byte-identical)."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    return folder / "outputs" / f"{hashlib.sha256(str(home.absolute()).encode()).hexdigest()[:32]}.json"
+
+
+def _read_record(home: Path) -> dict[str, dict[str, object]]:
+    """Per output file of ``home``'s current generation: its inputs' digest, size, mtime, SHA-256.
+    Empty when there is none, or it describes another generation than the current one."""
+    path = _record_path(home)
+    try:
+        current = os.readlink(home / CURRENT)
+        record = json.loads(path.read_text(encoding="utf-8")) if path is not None else None
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(record, dict) or record.get("generation") != current:
+        return {}
+    files = record.get("files")
+    return files if isinstance(files, dict) else {}
+
+
+def _write_record(
+    home: Path, generation: str, inputs_of: dict[str, str], previous: dict[str, dict[str, object]]
+) -> None:
+    """Record the published files as they lie in ``generation`` (a file reused from the previous
+    one keeps its digest when its stat did not move: only new files are hashed)."""
+    path = _record_path(home)
+    if path is None:
+        return
+    files: dict[str, dict[str, object]] = {}
+    for name, inputs in inputs_of.items():
+        target = home / generation / name
+        try:
+            info = target.stat()
+            known = previous.get(name)
+            if known is not None and (known.get("size"), known.get("mtime_ns")) == (
+                info.st_size,
+                info.st_mtime_ns,
+            ):
+                digest = str(known.get("sha256"))
+            else:
+                digest = _file_digest(target)
+        except OSError:
+            continue  # not recorded: written again next time
+        files[name] = {"inputs": inputs, "size": info.st_size, "mtime_ns": info.st_mtime_ns, "sha256": digest}
+    write_atomic(path, json.dumps({"generation": generation, "files": files}, sort_keys=True))
+
+
+def _file_digest(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _reuse(previous: Path, known: dict[str, object], target: Path) -> bool:
+    """Link (else copy) the previous generation's file to ``target`` when it is still the file we
+    wrote: same size and mtime, or, where the stat moved, the same bytes. A deleted or hand-edited
+    output is written again."""
+    try:
+        info = previous.stat()
+        if info.st_size != known.get("size"):
+            return False
+        if info.st_mtime_ns != known.get("mtime_ns") and _file_digest(previous) != known.get("sha256"):
+            return False
+        try:
+            os.link(previous, target)
+        except OSError:  # no hard links on this file system
+            shutil.copy2(previous, target)
+    except OSError:
+        target.unlink(missing_ok=True)
+        return False
+    return True
 
 
 def write_outputs(
@@ -198,15 +331,37 @@ def _write_outputs(
                 if name in in_space:
                     for path in write_generated_clip(sub, state.generated[name], staging / folder):
                         staged.append(path.relative_to(staging))
+        for relative in staged:
+            verify_written(staging / relative)
+        # Each document output is written only when what it is made of changed (`_output_inputs`);
+        # otherwise the previous generation's file, checked to be the one written, is linked in.
         writers = _writers(space)
+        home = out_dir / GENERATIONS / safe_file_stem(space.name)
+        previous = _read_record(home)
+        text = document.model_dump_json(indent=2) + "\n"
+        document_digest = hashlib.sha256(text.encode()).hexdigest()
+        inputs_of: dict[str, str] = {}
         for name in formats:
             suffix, writer = writers[name]
             file_name = f"{space.name}{suffix}"
-            writer(document, staging / file_name)
+            target = staging / file_name
+            inputs = _output_inputs(name, file_name, document_digest, space)
+            known = previous.get(file_name)
+            if (
+                known is None
+                or known.get("inputs") != inputs
+                or not _reuse(home / CURRENT / file_name, known, target)
+            ):
+                if name == "json":
+                    target.write_text(text, encoding="utf-8")  # the text digested above
+                else:
+                    writer(document, target)
+                verify_written(target)
+            inputs_of[file_name] = inputs
             staged.append(Path(file_name))
-        for relative in staged:
-            verify_written(staging / relative)
-        publish(staging, out_dir, safe_file_stem(space.name), staged)
+        generation = publish(staging, out_dir, safe_file_stem(space.name), staged)
+        if generation is not None:
+            _write_record(home, generation, inputs_of, previous)
         return document, [out_dir / relative for relative in staged]
     except BaseException:
         if created:
@@ -267,19 +422,22 @@ def _symlinks_work(folder: Path) -> bool:
     return True
 
 
-def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> None:
-    """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above)."""
+def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> str | None:
+    """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above).
+    Returns the generation's folder name (None where files are moved into place, no symlinks)."""
     if not _symlinks_work(out_dir):
         for relative in files:
             target = out_dir / relative
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(staging / relative, target)
-        return
+        return None
     home = out_dir / GENERATIONS / name
     home.mkdir(parents=True, exist_ok=True)
     generation = f"g-{_content_hash(staging, files)}"
     if not (home / generation).is_dir():
         os.replace(staging, home / generation)
+    else:
+        _refresh(staging, home / generation, files)
     documents = [relative for relative in files if relative.parent == Path(".")]
     # Generated clips are real files (hard links into the generation, else copies): engines import
     # them as assets (Unity does not support symlinked assets) and exporters resolve their paths,
@@ -302,6 +460,21 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> N
     for old in home.glob("g-*"):
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
+    return generation
+
+
+def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
+    """An identical build's generation already exists: a file in it that is not what this build
+    wrote (edited by hand through its link, deleted) is replaced, each in one rename."""
+    for relative in files:
+        new, old = staging / relative, generation / relative
+        try:
+            if os.path.samefile(new, old) or filecmp.cmp(new, old, shallow=False):
+                continue
+        except OSError:
+            pass
+        old.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(new, old)
 
 
 def _place(source: Path, target: Path) -> None:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import stat
 import sys
 import tempfile
 from collections.abc import Iterable, Sequence
@@ -31,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, cache_dir
+from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, cache_dir, content_digest
 
 STAMP_VERSION = 1
 
@@ -81,14 +82,20 @@ def _digest(path: Path) -> str:
     return digest.hexdigest()
 
 
-def file_state(path: Path) -> FileState:
+def file_state(path: Path, known: dict[str, FileState] | None = None) -> FileState:
+    """Size, mtime and SHA-256 of ``path``. The digest is reused, not read again, from ``known``
+    (the previous stamp) or the measurement cache's digests when the file's stat did not move:
+    a rebuild after one edit hashes the edited clip and the new outputs, not the library."""
     try:
         info = path.stat()
     except OSError:
         return FileState(str(path), -2, 0, "")
-    if path.is_dir():
+    if stat.S_ISDIR(info.st_mode):
         return FileState(str(path), -1, info.st_mtime_ns, "")
-    return FileState(str(path), info.st_size, info.st_mtime_ns, _digest(path))
+    before = known.get(str(path)) if known else None
+    if before is not None and before.size == info.st_size and before.mtime_ns == info.st_mtime_ns:
+        return before
+    return FileState(str(path), info.st_size, info.st_mtime_ns, content_digest(path))
 
 
 def _unchanged(state: FileState) -> bool:
@@ -134,21 +141,37 @@ def record(key: str, inputs: Iterable[Path], outputs: Iterable[Path], printed: s
         return
     input_paths = sorted({Path(p).absolute() for p in inputs})
     folders = sorted({p.parent for p in input_paths})
+    known = _previous_states(path)
     stamp = {
         "version": __version__,
-        "inputs": [asdict(file_state(p)) for p in [*input_paths, *folders]],
-        "outputs": [asdict(file_state(Path(p).absolute())) for p in sorted(set(outputs))],
+        "inputs": [asdict(file_state(p, known)) for p in [*input_paths, *folders]],
+        "outputs": [asdict(file_state(Path(p).absolute(), known)) for p in sorted(set(outputs))],
         "stdout": printed,
         "exit_code": exit_code,
     }
+    write_atomic(path, json.dumps(stamp))
+
+
+def write_atomic(target: Path, text: str) -> None:
+    """Write a cache folder's file in one rename; a folder that refuses (read-only, full) is
+    ignored: a cache must never fail a build."""
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".tmp")
         with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            json.dump(stamp, stream)
-        os.replace(temporary, path)
+            stream.write(text)
+        os.replace(temporary, target)
     except OSError:
-        pass  # a read-only or full cache folder must never fail a build
+        pass
+
+
+def _previous_states(path: Path) -> dict[str, FileState]:
+    """The files of the stamp ``path`` holds now (the previous run's), by path; {} when none."""
+    try:
+        stamp: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        return {entry["path"]: FileState(**entry) for entry in stamp["inputs"] + stamp["outputs"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
 
 
 class Capture:
