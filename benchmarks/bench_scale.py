@@ -63,9 +63,13 @@ def write_project(folder: Path, count: int, seed: int = 3) -> Path:
             "duration": 1.2,
             "displacement_speed": abs(speed),
         }
+        gait = abs(speed) > 0.3
+        # Two steps per foot, as a measured walk has: the report draws them for every clip.
+        contacts = {"left": [[0.0, 0.35], [0.6, 0.95]], "right": [[0.3, 0.65], [0.9, 1.2]]} if gait else None
         measurement = Measurement(
             features=features, meters_per_unit=0.01, units_source="file", up_axis="y", root="Hips",
-            facing="hips", frames=145, fps=120.0, gait_period=1.0 if abs(speed) > 0.3 else None,
+            facing="hips", frames=145, fps=120.0, gait_period=1.0 if gait else None,
+            contacts=contacts, plant_phases={"left": 0.0, "right": 0.5} if gait else None,
         )  # fmt: skip
         cache.store(cache.cache_key(path, settings.cache_key(), None), [(path.stem, measurement)])
     return manifest
