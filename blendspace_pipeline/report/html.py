@@ -27,7 +27,7 @@ from blendspace_pipeline.report import tables
 from blendspace_pipeline.report.atomic import atomic_path
 from blendspace_pipeline.report.diagram import Layout, Scene, axis_ranges, build_scene, convex_hull
 from blendspace_pipeline.report.heatmap import css_gradient, heat_rgba, png_data_uri, scale_maximum
-from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map
+from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map, is_lod, lod_data
 from blendspace_pipeline.report.trajectory_error import (
     TrajectoryErrorGrid,
     document_trajectory_error,
@@ -90,22 +90,40 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
         manual=document_trajectory_error(doc, manual=True) if has_manual_positions(doc) else None,
     )
     stamp = stamp or build_stamp()
+    # Every row of the long tables is rendered once, here: the page shows the first page of each
+    # and the embedded data carries them all for the script's paging and filtering.
+    rows = {
+        "diagnostics-table": (tables.diagnostic_rows(doc), tables.diagnostic_search(doc)),
+        "placeholders-table": (tables.placeholder_rows(doc), tables.placeholder_search(doc)),
+        "clips-table": (tables.clip_rows(doc), tables.clip_search(doc)),
+    }
     body = "".join(
         [
             _summary(doc, scene, trajectory),
             _diagram_section(scene),
             _section(
-                "diagnostics", "Diagnostics", tables.diagnostic_filters(doc) + tables.diagnostics_table(doc)
+                "diagnostics",
+                "Diagnostics",
+                tables.diagnostic_filters(doc) + tables.diagnostics_table(doc, rows["diagnostics-table"][0]),
             ),
             _refused_section(doc),
-            _section("placeholders", "Clips to add", _placeholder_intro() + tables.placeholders_table(doc)),
+            _section(
+                "placeholders",
+                "Clips to add",
+                _placeholder_intro() + tables.placeholders_table(doc, rows["placeholders-table"][0]),
+            ),
             _coverage_section(doc, scene),
             _trajectory_section(doc, scene, trajectory),
             _engine_section(doc, scene),
-            _section("clips", "Clips", tables.clips_table(doc)),
+            _section("clips", "Clips", tables.clips_table(doc, rows["clips-table"][0])),
             _section("build", "Build", tables.build_table(doc, stamp)),
         ]
     )
+    data = _data(doc, scene, trajectory)
+    data["page_size"] = tables.PAGE_SIZE
+    data["tables"] = {name: {"rows": r, "search": q} for name, (r, q) in rows.items()}
+    if is_lod(scene):
+        data["lod"] = lod_data(scene)
     title = escape(f"{doc.name} — blend-space report")
     return (
         f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
@@ -114,7 +132,7 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
         f"<style>{_asset('report.css')}</style></head><body>"
         f"<header><h1>{escape(doc.name)} <small>blend-space report</small></h1></header><main>{body}</main>"
         f'<div id="tooltip" role="tooltip" hidden></div>'
-        f'<script type="application/json" id="report-data">{_script_json(_data(doc, scene, trajectory))}'
+        f'<script type="application/json" id="report-data">{_script_json(data)}'
         "</script>"
         f"<script>{_asset('report.js')}</script></body></html>\n"
     )
@@ -491,10 +509,10 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
                     "source": s.source,
                     "generated": s.generated,
                     "fix": s.fix,
-                    "features": s.features,
-                    "position": s.position,
-                    "snap": s.snapping_error,
-                    "manual": s.manual_position,
+                    "features": {k: _short(v) for k, v in s.features.items()},
+                    "position": _shorts(s.position),
+                    "snap": _shorts(s.snapping_error),
+                    "manual": _shorts(s.manual_position),
                     "diagnostics": involved[i],
                 }
             )
@@ -509,11 +527,20 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
                 "hint": d.hint,
                 "fix": d.fix,
                 "clips": d.clips,
-                "position": d.position,
+                "position": _shorts(d.position),
             }
             for d in doc.diagnostics
         ],
-        "placeholders": [p.model_dump() for p in doc.placeholders],
+        "placeholders": [
+            {
+                "position": _shorts(p.position),
+                "priority": p.priority,
+                "rule": p.rule,
+                "reason": p.reason,
+                "features": {k: _short(v) for k, v in p.features.items()},
+            }
+            for p in doc.placeholders
+        ],
         "heat": {
             "max": trajectory.maximum,
             "box": [lay.left, lay.top, lay.left + lay.plot_width, lay.top + lay.plot_height],
@@ -527,7 +554,16 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
 
 def _without_empty(entry: dict[str, Any]) -> dict[str, Any]:
     """Leave out null, false and empty values: the script reads a missing key the same way."""
-    return {k: v for k, v in entry.items() if v not in (None, False, [], {})}
+    return {k: v for k, v in entry.items() if v is not None and v is not False and not (v == [] or v == {})}
+
+
+def _short(value: float) -> float | None:
+    """`SIGNIFICANT` digits, NaN and infinities as null (JSON has neither)."""
+    return float(f"{value:.{SIGNIFICANT}g}") if math.isfinite(value) else None
+
+
+def _shorts(values: Sequence[float] | None) -> list[float | None] | None:
+    return None if values is None else [_short(v) for v in values]
 
 
 def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
@@ -542,18 +578,8 @@ def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
     return {"ex": short(grid.error_x), "ey": short(grid.error_y)}
 
 
-def _compact(value: Any) -> Any:
-    """Round floats to `SIGNIFICANT` digits and turn NaN into null, recursively."""
-    if isinstance(value, float):
-        return None if not math.isfinite(value) else float(f"{value:.{SIGNIFICANT}g}")
-    if isinstance(value, dict):
-        return {k: _compact(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_compact(v) for v in value]
-    return value
-
-
 def _script_json(data: dict[str, Any]) -> str:
     """JSON safe inside <script>: no `</script>` or `<!--` can appear in a string."""
-    text = json.dumps(_compact(data), separators=(",", ":"), ensure_ascii=False)
+    # Floats were shortened where the data was gathered (`_short`); NaN would not be JSON.
+    text = json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
