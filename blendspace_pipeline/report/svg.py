@@ -11,7 +11,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from html import escape
 
-from blendspace_pipeline.report.diagram import PLACEHOLDER_RADIUS, SAMPLE_RADIUS, Marker, Point, Problem, Scene
+from blendspace_pipeline.report.diagram import (
+    PLACEHOLDER_RADIUS,
+    SAMPLE_RADIUS,
+    Marker,
+    Point,
+    Problem,
+    Scene,
+)
 
 LABEL_LIMIT = 60  # above this many samples, names are hidden until the user asks for them
 HEAT_EDGE_LIMIT = 300  # above this many samples the error map leaves out the triangle edges
@@ -262,7 +269,9 @@ def lod_placeholders(scene: Scene) -> str:
 def _problem_d(problem: Problem, box: tuple[float, float, float, float]) -> str:
     if problem.kind == "region":
         left, top, right, bottom = box
-        return f"{_path([(left, top), (right, top), (right, bottom), (left, bottom)])} {_path(problem.points)}"
+        return (
+            f"{_path([(left, top), (right, top), (right, bottom), (left, bottom)])} {_path(problem.points)}"
+        )
     if problem.kind == "polygon":
         return _path(problem.points)
     if problem.kind == "circle":

@@ -63,7 +63,8 @@ def diagnostic_rows(doc: BlendSpaceDocument) -> list[str]:
 def diagnostic_search(doc: BlendSpaceDocument) -> list[str]:
     """What the table's filter box matches, per row (lower case)."""
     return [
-        " ".join([d.severity, d.rule, d.code, d.message, d.hint or "", *d.clips]).lower() for d in doc.diagnostics
+        " ".join([d.severity, d.rule, d.code, d.message, d.hint or "", *d.clips]).lower()
+        for d in doc.diagnostics
     ]
 
 
