@@ -36,7 +36,7 @@ from blendspace_pipeline.report.trajectory_error import (
     manual_triangles,
     measured_positions,
 )
-from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument
+from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, ClipInfoDoc, DiagnosticDoc
 from blendspace_pipeline.space.geometry import normalise
 from blendspace_pipeline.space.runtime_blend import DEFAULT_HORIZON, runtime_grid
 
@@ -92,10 +92,13 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
     stamp = stamp or build_stamp()
     # Every row of the long tables is rendered once, here: the page shows the first page of each
     # and the embedded data carries them all for the script's paging and filtering.
+    # The long tables show their first page as HTML rendered here; the script renders the other
+    # pages (and filtered ones) from the embedded data with the same markup (`report.js` rows).
+    page = tables.PAGE_SIZE
     rows = {
-        "diagnostics-table": (tables.diagnostic_rows(doc), tables.diagnostic_search(doc)),
-        "placeholders-table": (tables.placeholder_rows(doc), tables.placeholder_search(doc)),
-        "clips-table": (tables.clip_rows(doc), tables.clip_search(doc)),
+        "diagnostics-table": tables.diagnostic_rows(doc, page),
+        "placeholders-table": tables.placeholder_rows(doc, page),
+        "clips-table": tables.clip_rows(doc, page),
     }
     body = "".join(
         [
@@ -104,24 +107,25 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
             _section(
                 "diagnostics",
                 "Diagnostics",
-                tables.diagnostic_filters(doc) + tables.diagnostics_table(doc, rows["diagnostics-table"][0]),
+                tables.diagnostic_filters(doc) + tables.diagnostics_table(doc, rows["diagnostics-table"]),
             ),
             _refused_section(doc),
             _section(
                 "placeholders",
                 "Clips to add",
-                _placeholder_intro() + tables.placeholders_table(doc, rows["placeholders-table"][0]),
+                _placeholder_intro() + tables.placeholders_table(doc, rows["placeholders-table"]),
             ),
             _coverage_section(doc, scene),
             _trajectory_section(doc, scene, trajectory),
             _engine_section(doc, scene),
-            _section("clips", "Clips", tables.clips_table(doc, rows["clips-table"][0])),
+            _section("clips", "Clips", tables.clips_table(doc, rows["clips-table"])),
             _section("build", "Build", tables.build_table(doc, stamp)),
         ]
     )
     data = _data(doc, scene, trajectory)
-    data["page_size"] = tables.PAGE_SIZE
-    data["tables"] = {name: {"rows": r, "search": q} for name, (r, q) in rows.items()}
+    data["page_size"] = page
+    data["feature_columns"] = tables.feature_columns(doc)
+    data["units"] = dict(tables.UNITS)
     if is_lod(scene):
         data["lod"] = lod_data(scene)
     title = escape(f"{doc.name} — blend-space report")
@@ -509,11 +513,13 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
                     "source": s.source,
                     "generated": s.generated,
                     "fix": s.fix,
-                    "features": {k: _short(v) for k, v in s.features.items()},
-                    "position": _shorts(s.position),
-                    "snap": _shorts(s.snapping_error),
-                    "manual": _shorts(s.manual_position),
+                    "features": {k: _finite(v) for k, v in s.features.items()},
+                    "position": _finites(s.position),
+                    "snap": _finites(s.snapping_error),
+                    "manual": _finites(s.manual_position),
                     "diagnostics": involved[i],
+                    "clip": _clip_facts(s.clip),
+                    "contacts": s.contacts,
                 }
             )
             for i, s in enumerate(doc.samples)
@@ -527,17 +533,18 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
                 "hint": d.hint,
                 "fix": d.fix,
                 "clips": d.clips,
-                "position": _shorts(d.position),
+                "position": _finites(d.position),
+                "where": _where(d),
             }
             for d in doc.diagnostics
         ],
         "placeholders": [
             {
-                "position": _shorts(p.position),
+                "position": _finites(p.position),
                 "priority": p.priority,
                 "rule": p.rule,
                 "reason": p.reason,
-                "features": {k: _short(v) for k, v in p.features.items()},
+                "features": {k: _finite(v) for k, v in p.features.items()},
             }
             for p in doc.placeholders
         ],
@@ -557,13 +564,44 @@ def _without_empty(entry: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in entry.items() if v is not None and v is not False and not (v == [] or v == {})}
 
 
-def _short(value: float) -> float | None:
-    """`SIGNIFICANT` digits, NaN and infinities as null (JSON has neither)."""
-    return float(f"{value:.{SIGNIFICANT}g}") if math.isfinite(value) else None
+def _finite(value: float) -> float | None:
+    """NaN and infinities as null: JSON has neither. Values keep full precision so that the
+    script's tables format them exactly as the Python-rendered first page does."""
+    return value if math.isfinite(value) else None
 
 
-def _shorts(values: Sequence[float] | None) -> list[float | None] | None:
-    return None if values is None else [_short(v) for v in values]
+def _finites(values: Sequence[float] | None) -> list[float | None] | None:
+    return None if values is None else [_finite(v) for v in values]
+
+
+def _where(diagnostic: DiagnosticDoc) -> str | None:
+    location = diagnostic.location
+    if location is None:
+        return None
+    return f"{location.path}:{location.line}" if location.line else location.path
+
+
+def _clip_facts(info: ClipInfoDoc | None) -> dict[str, Any] | None:
+    """What the clip table shows of a clip beyond its features (short keys: one per clip)."""
+    if info is None:
+        return None
+    return _without_empty(
+        {
+            "duration": info.duration,
+            "fps": info.fps,
+            "frames": info.frames,
+            "mpu": info.meters_per_unit,
+            "units": info.units_source,
+            "up": info.up_axis,
+            "root": info.root,
+            "facing": info.facing,
+            "range": info.range,
+            "auto": info.range_auto,
+            "guesses": info.guesses,
+            "notes": info.notes,
+            "phases": info.plant_phases,
+        }
+    )
 
 
 def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
@@ -580,6 +618,5 @@ def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
 
 def _script_json(data: dict[str, Any]) -> str:
     """JSON safe inside <script>: no `</script>` or `<!--` can appear in a string."""
-    # Floats were shortened where the data was gathered (`_short`); NaN would not be JSON.
     text = json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")

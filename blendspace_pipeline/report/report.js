@@ -234,11 +234,94 @@
   // Long tables: one page of rows in the DOM, rendered from the embedded rows; a filter box
   // (and for diagnostics the severity and rule filters) chooses which rows are paged through.
   const pagers = {};
+  // Python's "%.<digits>g" (tables.num), so the rows the script renders read exactly like the
+  // first page rendered by the build.
+  function pyG(v, digits = 4) {
+    if (v === null || v === undefined) return "–";
+    if (v === 0) return Object.is(v, -0) ? "-0" : "0";
+    if (!Number.isFinite(v)) return Number.isNaN(v) ? "nan" : v > 0 ? "inf" : "-inf";
+    const [mantissa, exponentText] = v.toExponential(digits - 1).split("e");
+    const exponent = +exponentText;
+    if (exponent < -4 || exponent >= digits) {
+      const m = mantissa.includes(".") ? mantissa.replace(/0+$/, "").replace(/\.$/, "") : mantissa;
+      return `${m}e${exponent < 0 ? "-" : "+"}${String(Math.abs(exponent)).padStart(2, "0")}`;
+    }
+    const fixed = v.toFixed(Math.max(0, digits - 1 - exponent));
+    return fixed.includes(".") ? fixed.replace(/0+$/, "").replace(/\.$/, "") : fixed;
+  }
+  const pair = (values, digits = 4) => (values ? `(${values.map((v) => pyG(v, digits)).join(", ")})` : "–");
+  const clipList = (names) => names.map((n) => `<span class="clip-ref">${esc(n)}</span>`).join(" ") || "–";
+
+  function diagnosticRow(i) {
+    const d = data.diagnostics[i];
+    return `<tr data-diagnostic="${i}" data-severity="${esc(d.severity)}" data-rule="${esc(d.rule)}" tabindex="0">`
+      + `<td><span class="sev sev-${esc(d.severity)}">${esc(d.severity)}</span></td>`
+      + `<td><code>${esc(d.rule)}</code><br><small>${esc(d.code)}</small></td><td>${clipList(d.clips)}</td>`
+      + `<td>${esc(d.message)}${d.fix ? ` <span class="fix">fix: ${esc(d.fix)}</span>` : ""}</td><td>${esc(d.hint || "")}`
+      + `${d.where ? `<br><small>${esc(d.where)}</small>` : ""}</td></tr>`;
+  }
+  const featuresText = (features) => Object.entries(features || {})
+    .map(([k, v]) => `${esc(k)} ${pyG(v)} ${esc(data.units[k] || "")}`).join(", ") || "–";
+  function placeholderRow(i) {
+    const p = data.placeholders[i];
+    return `<tr data-placeholder-row="${i}"><td><span class="prio ${p.priority}">${p.priority}</span></td>`
+      + `<td>${pyG(p.position[0])} ${esc(ax.unit)}, ${pyG(p.position[1])} ${esc(ay.unit)}</td>`
+      + `<td>${featuresText(p.features)}</td><td><code>${esc(p.rule)}</code></td><td>${esc(p.reason)}</td></tr>`;
+  }
+  const STRIP = "contacts-strip"; // named once: the page's markup is what counts its strips
+  function contactsStrip(s) {
+    const duration = (s.features || {}).duration || 0;
+    if (!s.contacts || duration <= 0) return "–";
+    const width = 120, row = 8;
+    const bars = [];
+    ["left", "right"].forEach((foot, lane) => {
+      for (const [start, end] of s.contacts[foot] || []) {
+        const x0 = (start / duration) * width, x1 = (end / duration) * width;
+        bars.push(`<rect class="contact ${foot}" x="${x0.toFixed(1)}" y="${(lane * (row + 2)).toFixed(1)}" `
+          + `width="${Math.max(x1 - x0, 0.5).toFixed(1)}" height="${row}"><title>${foot} foot down `
+          + `${start.toFixed(2)}–${end.toFixed(2)} s</title></rect>`);
+      }
+    });
+    const phases = s.clip && s.clip.phases;
+    const label = phases ? `<br><small>plants at phase L ${phases.left.toFixed(2)}, R ${phases.right.toFixed(2)}</small>` : "";
+    return `<svg class="${STRIP}" width="${width}" height="${2 * row + 2}" role="img" `
+      + `aria-label="foot contacts of ${esc(s.name)}">${bars.join("")}</svg>${label}`;
+  }
+  function clipRow(i) {
+    const s = data.samples[i];
+    const kind = s.generated ? `<br><span class="tag generated">generated: ${esc(s.fix || "fix")}</span>` : "";
+    const cells = data.feature_columns.map((f) => `<td>${pyG((s.features || {})[f])}</td>`).join("");
+    const c = s.clip;
+    let facts;
+    if (!c) facts = `<td>–</td><td>–</td><td>–</td><td>–</td><td>${contactsStrip(s)}</td><td>–</td>`;
+    else {
+      let trim = c.range ? `<br>range ${pair(c.range)} s${c.auto ? " (auto)" : ""}` : "";
+      trim += (c.guesses || []).map((g) => `<br><span class="tag guess">${esc(g)}</span>`).join("");
+      facts = `<td>${pyG(c.fps)}</td><td>${c.frames}</td>`
+        + `<td>${pyG(c.mpu)} m/unit<br><small>${esc(c.units)}</small></td>`
+        + `<td>up ${esc(c.up)}<br>root ${esc(c.root)}<br>facing ${esc(c.facing)}${trim}</td>`
+        + `<td>${contactsStrip(s)}</td><td>${(c.notes || []).map(esc).join("<br>") || "–"}</td>`;
+    }
+    return `<tr data-clip-row="${i}"><th scope="row">${esc(s.name)}${kind}<br><small>${esc(s.source)}</small></th>`
+      + `<td>${pair(s.position)}</td><td>${pair(s.snap, 3)}</td><td>${pair(s.manual)}</td>${cells}${facts}</tr>`;
+  }
+  // Per table: how many rows, how to render row i, and the text its filter box matches.
+  const tableRows = {
+    "diagnostics-table": [data.diagnostics.length, diagnosticRow,
+      (i) => { const d = data.diagnostics[i]; return [d.severity, d.rule, d.code, d.message, d.hint || "", ...d.clips].join(" "); }],
+    "placeholders-table": [data.placeholders.length, placeholderRow,
+      (i) => { const p = data.placeholders[i]; return [p.priority, p.rule, p.reason].join(" "); }],
+    "clips-table": [data.samples.length, clipRow,
+      (i) => { const s = data.samples[i]; return `${s.name} ${s.source} ${s.fix || ""}`; }],
+  };
+
   function makePager(id, keep) {
     const table = document.getElementById(id);
     const box = document.querySelector(`.pager[data-for="${id}"]`);
-    if (!table || !box || !data.tables[id]) return;
-    const { rows, search } = data.tables[id];
+    if (!table || !box || !tableRows[id]) return;
+    const [count, renderRow, textOf] = tableRows[id];
+    const rows = { length: count };
+    const search = Array.from({ length: count }, (_, i) => textOf(i).toLowerCase());
     const body = table.tBodies[0];
     const input = box.querySelector("input");
     const info = box.querySelector(".page-info");
@@ -257,7 +340,7 @@
       state.page = Math.min(Math.max(state.page, 0), pages - 1);
       const first = state.page * size;
       const page = state.shown.slice(first, first + size);
-      body.innerHTML = page.map((i) => rows[i]).join("");
+      body.innerHTML = page.map(renderRow).join("");
       info.textContent = (page.length ? `${first + 1}–${first + page.length} of ${state.shown.length}` : `0 of ${state.shown.length}`)
         + (state.shown.length < rows.length ? ` (${rows.length} in all)` : "") + ` · page ${state.page + 1} of ${pages}`;
       previous.disabled = state.page === 0;

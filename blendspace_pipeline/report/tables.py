@@ -44,9 +44,10 @@ def _clip_list(names: list[str]) -> str:
 PAGE_SIZE = 50  # rows per page of a long table: the browser holds only one page in the DOM
 
 
-def diagnostic_rows(doc: BlendSpaceDocument) -> list[str]:
+def diagnostic_rows(doc: BlendSpaceDocument, limit: int | None = None) -> list[str]:
+    """Rows of the diagnostics table (the first ``limit``); `report.js` `diagnosticRow` mirrors it."""
     rows = []
-    for i, d in enumerate(doc.diagnostics):
+    for i, d in enumerate(doc.diagnostics[:limit]):
         where = ""
         if d.location is not None:
             where = f"{d.location.path}:{d.location.line}" if d.location.line else d.location.path
@@ -60,20 +61,12 @@ def diagnostic_rows(doc: BlendSpaceDocument) -> list[str]:
     return rows
 
 
-def diagnostic_search(doc: BlendSpaceDocument) -> list[str]:
-    """What the table's filter box matches, per row (lower case)."""
-    return [
-        " ".join([d.severity, d.rule, d.code, d.message, d.hint or "", *d.clips]).lower()
-        for d in doc.diagnostics
-    ]
-
-
 def diagnostics_table(doc: BlendSpaceDocument, rows: list[str]) -> str:
-    """The table with its first page of ``rows``; the script pages through the rest."""
-    if not rows:
+    """The table with its first page, ``rows``; the script pages through the rest."""
+    if not doc.diagnostics:
         return '<p class="empty">No diagnostics: every rule passed.</p>'
     return (
-        pager("diagnostics-table", len(rows), "find a clip, rule or message")
+        pager("diagnostics-table", len(doc.diagnostics), "find a clip, rule or message")
         + '<table id="diagnostics-table"><thead><tr><th>severity</th><th>rule</th><th>clips</th>'
         "<th>message</th>"
         f"<th>hint</th></tr></thead><tbody>{''.join(rows[:PAGE_SIZE])}</tbody></table>"
@@ -111,25 +104,22 @@ def diagnostic_filters(doc: BlendSpaceDocument) -> str:
     )
 
 
-def placeholder_rows(doc: BlendSpaceDocument) -> list[str]:
+def placeholder_rows(doc: BlendSpaceDocument, limit: int | None = None) -> list[str]:
+    """Rows of the placeholders table; `report.js` `placeholderRow` mirrors it."""
     x, y = doc.axes
     return [
         f'<tr data-placeholder-row="{i}"><td><span class="prio {p.priority}">{p.priority}</span></td>'
         f"<td>{num(p.position[0])} {e(x.unit)}, {num(p.position[1])} {e(y.unit)}</td>"
         f"<td>{_features_text(p.features)}</td><td><code>{e(p.rule)}</code></td><td>{e(p.reason)}</td></tr>"
-        for i, p in enumerate(doc.placeholders)
+        for i, p in enumerate(doc.placeholders[:limit])
     ]
 
 
-def placeholder_search(doc: BlendSpaceDocument) -> list[str]:
-    return [" ".join([p.priority, p.rule, p.reason]).lower() for p in doc.placeholders]
-
-
 def placeholders_table(doc: BlendSpaceDocument, rows: list[str]) -> str:
-    if not rows:
+    if not doc.placeholders:
         return '<p class="empty">No clips to add.</p>'
     return (
-        pager("placeholders-table", len(rows), "find a rule or reason")
+        pager("placeholders-table", len(doc.placeholders), "find a rule or reason")
         + '<table id="placeholders-table"><thead><tr><th>priority</th><th>position</th><th>clip to author</th>'
         f"<th>rule</th><th>why</th></tr></thead><tbody>{''.join(rows[:PAGE_SIZE])}</tbody></table>"
     )
@@ -146,20 +136,17 @@ def feature_columns(doc: BlendSpaceDocument) -> list[str]:
     return [f for f in ordered if f in names] + sorted(names - set(ordered))
 
 
-def clip_rows(doc: BlendSpaceDocument) -> list[str]:
+def clip_rows(doc: BlendSpaceDocument, limit: int | None = None) -> list[str]:
+    """Rows of the clips table; `report.js` `clipRow` mirrors it."""
     features = feature_columns(doc)
-    return [_clip_row(i, s, features) for i, s in enumerate(doc.samples)]
-
-
-def clip_search(doc: BlendSpaceDocument) -> list[str]:
-    return [f"{s.name} {s.source} {s.fix or ''}".lower() for s in doc.samples]
+    return [_clip_row(i, s, features) for i, s in enumerate(doc.samples[:limit])]
 
 
 def clips_table(doc: BlendSpaceDocument, rows: list[str]) -> str:
     features = feature_columns(doc)
     heads = "".join(f"<th>{e(f)}<br><small>{e(UNITS.get(f, ''))}</small></th>" for f in features)
     return (
-        pager("clips-table", len(rows), "find a clip by name or file")
+        pager("clips-table", len(doc.samples), "find a clip by name or file")
         + '<div class="scroll"><table id="clips-table"><thead><tr><th>clip</th><th>position</th>'
         f"<th>snapping error</th><th>by hand</th>{heads}<th>fps</th><th>frames</th><th>units</th>"
         f"<th>skeleton</th><th>foot contacts<br><small>L / R over the clip</small></th><th>notes</th>"
