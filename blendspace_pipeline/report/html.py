@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from blendspace_pipeline.features import FEATURE_UNITS
 from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report import tables
@@ -125,7 +126,7 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
     data = _data(doc, scene, trajectory)
     data["page_size"] = page
     data["feature_columns"] = tables.feature_columns(doc)
-    data["units"] = dict(tables.UNITS)
+    data["units"] = dict(FEATURE_UNITS)
     if is_lod(scene):
         data["lod"] = lod_data(scene)
     title = escape(f"{doc.name} — blend-space report")
