@@ -562,7 +562,9 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
 
 def _without_empty(entry: dict[str, Any]) -> dict[str, Any]:
     """Leave out null, false and empty values: the script reads a missing key the same way."""
-    return {k: v for k, v in entry.items() if v is not None and v is not False and not (v == [] or v == {})}
+    return {
+        k: v for k, v in entry.items() if not (v is None or v is False or (type(v) in (list, dict) and not v))
+    }
 
 
 def _finite(value: float) -> float | None:
