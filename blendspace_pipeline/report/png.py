@@ -135,8 +135,40 @@ def _paint_areas(scene: Scene) -> Canvas:
         else:
             centres = np.array([p.points[0] for p in problems], dtype=np.float64).reshape(-1, 2)
             spans = _disc_spans(centres, np.array([p.radius for p in problems]), height, width)
-        _blend(canvas, _coverage(spans), colour, AREA_ALPHA[kind])
+        _blend_spans(canvas, spans, colour, AREA_ALPHA[kind])
     return canvas
+
+
+def _span_pixels(spans: Spans, width: int) -> np.ndarray:
+    """Flat pixel index of every pixel of every span."""
+    rows, c0, c1 = spans
+    lengths = c1 - c0 + 1
+    return np.repeat(rows * width + c0, lengths) + _ramp(lengths)
+
+
+def _blend_spans(canvas: Canvas, spans: Spans, colour: Colour, alpha: float) -> None:
+    """Blend the spans' shapes over the canvas (k overlapping shapes as one layer of alpha
+    1 - (1 - alpha)^k). Few pixels (small shapes over a big plot): their flat indices, counted
+    by sorting; many: the coverage counts of `_coverage` over the spans' bounding box."""
+    rows, c0, c1 = spans
+    if not len(rows):
+        return
+    height, width = canvas.shape[:2]
+    area = (int(rows.max()) - int(rows.min()) + 1) * (int(c1.max()) - int(c0.min()) + 1)
+    if int((c1 - c0 + 1).sum()) * 4 > area:
+        _blend(canvas, _coverage(spans), colour, alpha)
+        return
+    pixel, count = np.unique(_span_pixels(spans, width), return_counts=True)
+    _mix(canvas, pixel, count, colour, alpha)
+
+
+def _mix(canvas: Canvas, pixel: np.ndarray, count: np.ndarray, colour: Colour, alpha: float) -> None:
+    """``count[i]`` layers of ``colour`` at ``alpha`` over flat pixel ``pixel[i]``."""
+    levels = np.power(np.float32(1.0 - alpha), np.arange(int(count.max()) + 1, dtype=np.float32))
+    mix = (1.0 - levels[count])[:, None]
+    pixels = canvas.reshape(-1, 3)
+    values = pixels[pixel]
+    pixels[pixel] = values + mix * (np.asarray(colour, dtype=np.float32) - values)
 
 
 Spans = tuple[np.ndarray, np.ndarray, np.ndarray]  # row, first column, last column (inclusive)
@@ -231,34 +263,44 @@ def _coverage(spans: Spans) -> tuple[np.ndarray, int, int]:
 
 
 def _blend(canvas: Canvas, coverage: tuple[np.ndarray, int, int], colour: Colour, alpha: float) -> None:
-    """``count`` layers of ``colour`` at ``alpha`` over the canvas (count 0 leaves a pixel as is)."""
+    """``count`` layers of ``colour`` at ``alpha`` over the canvas (count 0 leaves a pixel as is),
+    in place over the coverage's box: shapes this dense are cheapest as whole-array arithmetic."""
     count, top, left = coverage
     if not count.size:
         return
-    # (1 - alpha)^k for every count, looked up rather than raised per pixel.
-    height, width = canvas.shape[:2]
-    flat = np.flatnonzero(count)
-    rows, cols = flat // count.shape[1] + top, flat % count.shape[1] + left
-    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
-    flat, pixel = flat[inside], rows[inside] * width + cols[inside]
-    levels = np.power(np.float32(1.0 - alpha), np.arange(int(count.max()) + 1, dtype=np.float32))
-    mix = (1.0 - levels[count.reshape(-1)[flat]])[:, None]
-    pixels = canvas.reshape(-1, 3)
-    values = pixels[pixel]
-    pixels[pixel] = values + mix * (np.asarray(colour, dtype=np.float32) - values)
+    # Spans are clipped to the canvas, so the box lies inside it.
+    region = canvas[top : top + count.shape[0], left : left + count.shape[1]]
+    # 1 - (1 - alpha)^k for every count, looked up rather than raised per pixel.
+    levels = 1.0 - np.power(np.float32(1.0 - alpha), np.arange(int(count.max()) + 1, dtype=np.float32))
+    change = np.asarray(colour, dtype=np.float32) - region
+    change *= levels[count][..., None]
+    region += change
 
 
 def _hatch_outside(canvas: Canvas, hull: list[Point], box: tuple[int, int, int, int]) -> None:
-    """Diagonal hatching over the plot outside the hull: the uncovered area."""
+    """Diagonal hatching over the plot outside the hull: the uncovered area.
+
+    The plot rows minus the hull's span on each row are spans too: only the uncovered pixels
+    are visited (a few percent of the plot when the samples cover most of it).
+    """
     left, top, right, bottom = box
     height, width = canvas.shape[:2]
-    stripes = (np.arange(top, bottom)[:, None] + np.arange(left, right)[None, :]) % (8 * SCALE) < 3 * SCALE
+    rows = np.arange(top, bottom)
+    start, end = np.full(rows.shape, right), np.full(rows.shape, left - 1)  # hull span: empty
     if len(hull) >= 3:
-        inside, row, col = _coverage(_polygon_spans([np.asarray(hull, dtype=np.float64)], height, width))
-        full = np.zeros((height, width), dtype=bool)
-        full[row : row + inside.shape[0], col : col + inside.shape[1]] = inside > 0
-        stripes &= ~full[top:bottom, left:right]
-    _blend(canvas, (stripes.astype(np.int64), top, left), _rgb("uncovered-area"), HATCH_ALPHA)
+        hull_rows, c0, c1 = _polygon_spans([np.asarray(hull, dtype=np.float64)], height, width)
+        on_plot = (hull_rows >= top) & (hull_rows < bottom)
+        start[hull_rows[on_plot] - top] = np.maximum(c0[on_plot], left)
+        end[hull_rows[on_plot] - top] = np.minimum(c1[on_plot], right - 1)
+    crossed = start <= end
+    before = (rows, np.full(rows.shape, left), np.where(crossed, start - 1, right - 1))
+    after = (rows[crossed], end[crossed] + 1, np.full(int(crossed.sum()), right - 1))
+    spans = tuple(np.concatenate([a, b]) for a, b in zip(before, after, strict=True))
+    keep = spans[1] <= spans[2]
+    pixel = _span_pixels((spans[0][keep], spans[1][keep], spans[2][keep]), width)
+    stripes = pixel[(pixel // width + pixel % width) % (8 * SCALE) < 3 * SCALE]
+    if len(stripes):
+        _mix(canvas, stripes, np.ones(len(stripes), dtype=np.int64), _rgb("uncovered-area"), HATCH_ALPHA)
 
 
 class _Pen:
