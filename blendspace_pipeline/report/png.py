@@ -153,7 +153,7 @@ def _blend_spans(canvas: Canvas, spans: Spans, colour: Colour, alpha: float) -> 
     rows, c0, c1 = spans
     if not len(rows):
         return
-    height, width = canvas.shape[:2]
+    width = canvas.shape[1]
     area = (int(rows.max()) - int(rows.min()) + 1) * (int(c1.max()) - int(c0.min()) + 1)
     if int((c1 - c0 + 1).sum()) * 4 > area:
         _blend(canvas, _coverage(spans), colour, alpha)
