@@ -143,7 +143,8 @@ def _span_pixels(spans: Spans, width: int) -> np.ndarray:
     """Flat pixel index of every pixel of every span."""
     rows, c0, c1 = spans
     lengths = c1 - c0 + 1
-    return np.repeat(rows * width + c0, lengths) + _ramp(lengths)
+    pixels: np.ndarray = np.repeat(rows * width + c0, lengths) + _ramp(lengths)
+    return pixels
 
 
 def _blend_spans(canvas: Canvas, spans: Spans, colour: Colour, alpha: float) -> None:
