@@ -621,5 +621,19 @@ def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
 
 def _script_json(data: dict[str, Any]) -> str:
     """JSON safe inside <script>: no `</script>` or `<!--` can appear in a string."""
-    text = json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    try:
+        text = json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    except ValueError:  # a NaN or infinity the gathering did not expect: null, as JSON allows
+        text = json.dumps(_finite_all(data), separators=(",", ":"), ensure_ascii=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def _finite_all(value: Any) -> Any:
+    """NaN and infinities as null, recursively (the slow path of `_script_json`)."""
+    if isinstance(value, float):
+        return _finite(value)
+    if isinstance(value, dict):
+        return {k: _finite_all(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_all(v) for v in value]
+    return value
