@@ -276,6 +276,7 @@
     const bars = [];
     ["left", "right"].forEach((foot, lane) => {
       for (const [start, end] of s.contacts[foot] || []) {
+        if (start === null || end === null) continue; // a NaN the JSON could only carry as null
         const x0 = (start / duration) * width, x1 = (end / duration) * width;
         bars.push(`<rect class="contact ${foot}" x="${x0.toFixed(1)}" y="${(lane * (row + 2)).toFixed(1)}" `
           + `width="${Math.max(x1 - x0, 0.5).toFixed(1)}" height="${row}"><title>${foot} foot down `
