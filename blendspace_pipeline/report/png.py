@@ -1,14 +1,14 @@
 """`N.png`: the blend-space diagram for CI pages, chat and thumbnails, drawn with OpenImageIO.
 
 The only module of the package that imports OpenImageIO. It draws the same `diagram.Scene` as
-the HTML report: translucent areas (uncovered hatch, acute triangles, too-close clusters) are
-painted with numpy first, then grid, edges, outlines and markers are rasterised in numpy too
-(`_Pen`: thousands of segments and markers at once, so 10,000 samples cost about as much as a
-few hundred), and OIIO draws the text and the legend. Everything is drawn at twice the size and
-reduced with a box filter, which anti-aliases the one-pixel lines and text without changing the
-colour at a marker's centre.
+the HTML report, all in a numpy canvas: translucent areas (uncovered hatch, acute triangles,
+too-close clusters) as pixel-row spans of every shape at once, then grid, edges, outlines and
+markers (`_Pen`: thousands of segments and markers per vectorised call), so the cost is pixels
+plus shapes, not a Python loop per sample. OIIO renders each piece of text on a small patch (its
+coverage is blended in) and writes the file. Everything is drawn at twice the size and reduced
+with a box filter, which anti-aliases the one-pixel lines and text without changing the colour
+at a marker's centre.
 """
-
 from __future__ import annotations
 
 import math
@@ -61,22 +61,14 @@ def render(doc: BlendSpaceDocument) -> oiio.ImageBuf:
     _draw_frame(pen, scene)
     _draw_problems(pen, scene)
     _draw_swatches(pen, scene)
-    buf = oiio.ImageBuf(oiio.ImageSpec(big.width, big.height, 3, "float"))
-    roi = oiio.ROI(0, big.width, 0, big.height, 0, 1, 0, 3)
     if len(scene.samples) <= LABEL_LIMIT:
-        # Names go under the markers (a neighbour's label must not cover a marker's centre): OIIO
-        # draws them on the canvas so far, the markers follow on its result.
-        buf.set_pixels(roi, canvas)
-        _draw_labels(buf, scene)
-        pen = _Pen(np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float32).reshape(canvas.shape))
+        # Names go under the markers: a neighbour's label must not cover a marker's centre.
+        _draw_labels(canvas, scene)
     _draw_markers(pen, scene)
-    buf.set_pixels(roi, pen.canvas)
-    _draw_titles(buf, scene, doc)
-    _draw_legend(buf, scene)
-    # The box filter as a mean of SCALE x SCALE blocks, in numpy (OIIO's general resize is slower).
-    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float32)
-    pixels = pixels.reshape(big.height, big.width, 3)
-    mean = sum(pixels[dy::SCALE, dx::SCALE] for dy in range(SCALE) for dx in range(SCALE)) / SCALE**2
+    _draw_titles(canvas, scene, doc)
+    _draw_legend(canvas, scene)
+    # The box filter as a mean of SCALE x SCALE blocks, in numpy.
+    mean = sum(canvas[dy::SCALE, dx::SCALE] for dy in range(SCALE) for dx in range(SCALE)) / SCALE**2
     small = oiio.ImageBuf(oiio.ImageSpec(PNG_LAYOUT.width, PNG_LAYOUT.height, 3, "float"))
     small.set_pixels(oiio.ROI(0, PNG_LAYOUT.width, 0, PNG_LAYOUT.height, 0, 1, 0, 3), mean)
     return small
@@ -528,10 +520,12 @@ def _draw_markers(pen: _Pen, scene: Scene) -> None:
     )
 
 
-def _draw_labels(buf: oiio.ImageBuf, scene: Scene) -> None:
+def _draw_labels(canvas: Canvas, scene: Scene) -> None:
     """Clip names beside their markers (drawn only while there are few enough to read)."""
     for m in scene.samples:
-        _text(buf, m.x + (SAMPLE_RADIUS + 4) * SCALE, m.y - SAMPLE_RADIUS * SCALE, m.name, 12, _rgb("text"))
+        _text(
+            canvas, m.x + (SAMPLE_RADIUS + 4) * SCALE, m.y - SAMPLE_RADIUS * SCALE, m.name, 12, _rgb("text")
+        )
 
 
 # ---- text ---------------------------------------------------------------------------------------
@@ -552,7 +546,7 @@ def _font() -> str | None:
 
 
 def _text(
-    buf: oiio.ImageBuf,
+    canvas: Canvas,
     x: float,
     y: float,
     text: str,
@@ -561,33 +555,57 @@ def _text(
     align: str = "left",
     bold: bool = False,
 ) -> None:
+    """Text at (x, y) (baseline, OIIO's alignment): OIIO renders its coverage on a patch just
+    big enough, which is blended into the canvas, so the full-size canvas never goes through
+    OIIO."""
     font = _font()
     if font is None or not text:
         return
     name = f"{font}-Bold" if bold and font == "DroidSans" else font
-    algo.render_text(buf, round(x), round(y), text, size * SCALE, name, colour, alignx=align)
+    alpha, ox, oy = _text_coverage(text, size * SCALE, name, align)
+    left, top = round(x) - ox, round(y) - oy
+    height, width = canvas.shape[:2]
+    y0, x0 = max(top, 0), max(left, 0)
+    y1, x1 = min(top + alpha.shape[0], height), min(left + alpha.shape[1], width)
+    if y0 >= y1 or x0 >= x1:
+        return
+    cover = alpha[y0 - top : y1 - top, x0 - left : x1 - left, None]
+    region = canvas[y0:y1, x0:x1]
+    region += cover * (np.asarray(colour, dtype=np.float32) - region)
 
 
-def _draw_titles(buf: oiio.ImageBuf, scene: Scene, doc: BlendSpaceDocument) -> None:
+def _text_coverage(text: str, size: int, font: str, align: str) -> tuple[np.ndarray, int, int]:
+    """The text's coverage (0..1) on a patch, and the patch pixel of the text's origin: the patch
+    is twice the text's width around the origin, so any alignment fits."""
+    extent = algo.text_size(text, size, font)
+    width = extent.xend - extent.xbegin + 8
+    ox, oy = width + 4, 4 - extent.ybegin
+    patch = oiio.ImageBuf(oiio.ImageSpec(2 * width + 8, extent.yend - extent.ybegin + 8, 1, "float"))
+    algo.render_text(patch, ox, oy, text, size, font, (1.0,), alignx=align)
+    alpha = np.asarray(patch.get_pixels(oiio.FLOAT), dtype=np.float32).reshape(patch.spec().height, -1)
+    return alpha, ox, oy
+
+
+def _draw_titles(canvas: Canvas, scene: Scene, doc: BlendSpaceDocument) -> None:
     lay = scene.layout
     left, bottom = float(lay.left), lay.top + lay.plot_height
     for tick in scene.x_ticks:
-        _text(buf, tick.pixel, bottom + 20 * SCALE, tick.label, 13, _rgb("muted"), align="center")
+        _text(canvas, tick.pixel, bottom + 20 * SCALE, tick.label, 13, _rgb("muted"), align="center")
     for tick in scene.y_ticks:
-        _text(buf, left - 8 * SCALE, tick.pixel + 5 * SCALE, tick.label, 13, _rgb("muted"), align="right")
+        _text(canvas, left - 8 * SCALE, tick.pixel + 5 * SCALE, tick.label, 13, _rgb("muted"), align="right")
     counts = {s: sum(d.severity == s for d in doc.diagnostics) for s in ("error", "warning", "info")}
     generated = sum(s.generated for s in doc.samples)
-    _text(buf, lay.left, 32 * SCALE, f"{doc.name} — blend space", 22, _rgb("text"), bold=True)
+    _text(canvas, lay.left, 32 * SCALE, f"{doc.name} — blend space", 22, _rgb("text"), bold=True)
     summary = (
         f"{len(doc.samples) - generated} clips, {generated} generated · {counts['error']} errors, "
         f"{counts['warning']} warnings, {counts['info']} info · coverage {scene.coverage:.1f}% · "
         f"{len(doc.placeholders)} clips to add"
     )
-    _text(buf, lay.left, 56 * SCALE, summary, 13, _rgb("muted"))
+    _text(canvas, lay.left, 56 * SCALE, summary, 13, _rgb("muted"))
     x_axis, y_axis = scene.axes
     centre_x = lay.left + lay.plot_width / 2
     _text(
-        buf,
+        canvas,
         centre_x,
         lay.height - 18 * SCALE,
         f"{x_axis.feature} ({x_axis.unit})",
@@ -595,20 +613,23 @@ def _draw_titles(buf: oiio.ImageBuf, scene: Scene, doc: BlendSpaceDocument) -> N
         _rgb("text"),
         "center",
     )
-    _vertical_text(buf, 14 * SCALE, lay.top + lay.plot_height / 2, f"{y_axis.feature} ({y_axis.unit})", 14)
+    _vertical_text(canvas, 14 * SCALE, lay.top + lay.plot_height / 2, f"{y_axis.feature} ({y_axis.unit})", 14)
 
 
-def _vertical_text(buf: oiio.ImageBuf, x: float, centre_y: float, text: str, size: int) -> None:
-    """Text reading bottom to top: rendered flat on a patch, rotated, pasted."""
-    if _font() is None:
+def _vertical_text(canvas: Canvas, x: float, centre_y: float, text: str, size: int) -> None:
+    """Text reading bottom to top, its left edge at ``x``, centred on ``centre_y``."""
+    font = _font()
+    if font is None:
         return
-    extent = algo.text_size(text, size * SCALE, _font() or "")
-    width, height = extent.xend - extent.xbegin + 4, extent.yend - extent.ybegin + 4
-    patch = oiio.ImageBuf(oiio.ImageSpec(width, height, 3, "float"))
-    algo.fill(patch, _rgb("background"))
-    _text(patch, 2 - extent.xbegin, 2 - extent.ybegin, text, size, _rgb("text"))
-    turned = algo.rotate270(patch)
-    algo.paste(buf, round(x), round(centre_y - width / 2), 0, 0, turned)
+    alpha = np.rot90(_text_coverage(text, size * SCALE, font, "left")[0])  # counter-clockwise
+    rows, cols = np.nonzero(alpha > 0)
+    if not len(rows):
+        return
+    alpha = alpha[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    top, left = round(centre_y - alpha.shape[0] / 2), round(x)
+    region = canvas[top : top + alpha.shape[0], left : left + alpha.shape[1]]
+    cover = alpha[: region.shape[0], : region.shape[1], None]
+    region += cover * (np.asarray(_rgb("text"), dtype=np.float32) - region)
 
 
 LEGEND = [
@@ -629,13 +650,13 @@ def _legend_origin(scene: Scene) -> tuple[float, float]:
     return lay.left + lay.plot_width + 28 * SCALE, float(lay.top + 10 * SCALE)
 
 
-def _draw_legend(buf: oiio.ImageBuf, scene: Scene) -> None:
+def _draw_legend(canvas: Canvas, scene: Scene) -> None:
     """The legend's text (its swatches are drawn with the pen, `_draw_swatches`)."""
     x, y = _legend_origin(scene)
-    _text(buf, x, y, "Legend", 15, _rgb("text"), bold=True)
+    _text(canvas, x, y, "Legend", 15, _rgb("text"), bold=True)
     for _, label in LEGEND:
         y += 30 * SCALE
-        _text(buf, x + 28 * SCALE, y, label, 13, _rgb("text"))
+        _text(canvas, x + 28 * SCALE, y, label, 13, _rgb("text"))
 
 
 def _draw_swatches(pen: _Pen, scene: Scene) -> None:
