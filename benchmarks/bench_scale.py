@@ -108,8 +108,13 @@ GOAL_SECONDS = 3.0
 AFTER_MEASUREMENT = ("rules", "document", "write json", "write usd", "write html", "write png")
 
 
+LOAD_TIMEOUT = 60.0  # seconds; a report that has not loaded by then is reported as such
+
+
 def open_reports(paths: list[Path]) -> list[tuple[float, int]]:
-    """(seconds to the load event, element count) of each report in headless Chromium."""
+    """(seconds to the load event, element count) of each report in headless Chromium; NaN and
+    -1 when it did not load within `LOAD_TIMEOUT` (the 10,000-sample report before paging)."""
+    from playwright.sync_api import TimeoutError as PageTimeout
     from playwright.sync_api import sync_playwright
 
     found = []
@@ -119,9 +124,13 @@ def open_reports(paths: list[Path]) -> list[tuple[float, int]]:
         )
         for path in paths:
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            page.goto(path.as_uri(), wait_until="load")
-            load = page.evaluate("performance.getEntriesByType('navigation')[0].loadEventEnd") / 1000.0
-            found.append((load, int(page.evaluate("document.getElementsByTagName('*').length"))))
+            try:
+                page.goto(path.as_uri(), wait_until="load", timeout=LOAD_TIMEOUT * 1000)
+            except PageTimeout:
+                found.append((float("nan"), -1))
+            else:
+                load = page.evaluate("performance.getEntriesByType('navigation')[0].loadEventEnd") / 1000.0
+                found.append((load, int(page.evaluate("document.getElementsByTagName('*').length"))))
             page.close()
         browser.close()
     return found
