@@ -9,6 +9,7 @@ coverage is blended in) and writes the file. Everything is drawn at twice the si
 with a box filter, which anti-aliases the one-pixel lines and text without changing the colour
 at a marker's centre.
 """
+
 from __future__ import annotations
 
 import math
