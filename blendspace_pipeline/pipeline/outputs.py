@@ -93,7 +93,9 @@ def output_dir(space: BlendSpace, out: Path | None) -> Path:
 
 
 def _write_json(doc: BlendSpaceDocument, path: Path) -> None:
-    path.write_text(doc.model_dump_json(indent=2) + "\n", encoding="utf-8")
+    from blendspace_pipeline.writers.blendspace_json import write_blendspace_json
+
+    write_blendspace_json(doc, path)
 
 
 def input_files(space: BlendSpace) -> list[Path]:

@@ -161,12 +161,20 @@ def ticks(axis: AxisDoc, to_pixel: tuple[float, float], target: int = 8) -> list
 
 
 def triangle_edges(triangles: list[list[int]]) -> list[tuple[int, int]]:
-    edges = {tuple(sorted((tri[i], tri[(i + 1) % 3]))) for tri in triangles for i in range(3)}
-    return sorted((int(a), int(b)) for a, b in edges)
+    """Each triangle edge once, (low, high) sample indices, sorted."""
+    if not len(triangles):
+        return []
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    pairs = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    pairs.sort(axis=1)
+    span = int(pairs.max()) + 1
+    keys = np.unique(pairs[:, 0] * span + pairs[:, 1])  # one integer per edge: a 1-D sort
+    return list(zip((keys // span).tolist(), (keys % span).tolist(), strict=True))
 
 
 def convex_hull(points: FloatArray) -> list[Point]:
     """Counter-clockwise hull (monotone chain); fewer than 3 points when degenerate."""
+    points = _outside_octagon(np.asarray(points, dtype=np.float64).reshape(-1, 2))
     pts = sorted({(float(x), float(y)) for x, y in points})
     if len(pts) < 3:
         return pts
@@ -180,6 +188,31 @@ def convex_hull(points: FloatArray) -> list[Point]:
         return chain[:-1]
 
     return half(pts) + half(pts[::-1])
+
+
+def _outside_octagon(points: FloatArray) -> FloatArray:
+    """The points not strictly inside the polygon of the eight extreme points (along x, y and
+    both diagonals): only those can be on the hull (Akl-Toussaint), a few dozen of thousands."""
+    if len(points) < 64:
+        return points
+    directions = np.array(
+        [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)], dtype=np.float64
+    )
+    extremes = points[np.argmax(points @ directions.T, axis=0)]  # counter-clockwise order
+    corners = [tuple(p) for p in extremes]
+    corners = [c for i, c in enumerate(corners) if c != corners[i - 1]]
+    if len(corners) < 3 or polygon_area(corners) <= 0.0:
+        return points
+    octagon = np.array(corners)
+    a, b = octagon, np.roll(octagon, -1, axis=0)
+    # Strictly left of every counter-clockwise edge (with a margin for rounding): inside.
+    cross = (b[None, :, 0] - a[None, :, 0]) * (points[:, None, 1] - a[None, :, 1]) - (
+        b[None, :, 1] - a[None, :, 1]
+    ) * (points[:, None, 0] - a[None, :, 0])
+    scale = np.abs(points).max() + 1.0
+    inside = (cross > 1e-9 * scale * scale).all(axis=1)
+    kept: FloatArray = points[~inside]
+    return kept
 
 
 def _cross(o: Point, a: Point, b: Point) -> float:
@@ -244,10 +277,16 @@ def build_scene(doc: BlendSpaceDocument, layout: Layout | None = None) -> Scene:
         coverage=coverage_percent(hull),
     )
     by_name = {m.name: m for m in scene.samples}  # once: thousands of findings look clips up
+    # Every finding's position projected in one call (NaN rows: no position).
+    at = np.full((len(doc.diagnostics), 2), np.nan)
+    for i, d in enumerate(doc.diagnostics):
+        if d.position is not None and len(d.position) == 2:
+            at[i] = d.position
+    where = layout.project(normalise(at, axes)) if len(at) else at
     scene.problems = [
         p
         for i, d in enumerate(doc.diagnostics)
-        if (p := _problem(i, d, scene, doc, axes, by_name)) is not None
+        if (p := _problem(i, d, scene, doc, where[i], by_name)) is not None
     ]
     return scene
 
@@ -277,12 +316,13 @@ def _problem(
     diagnostic: DiagnosticDoc,
     scene: Scene,
     doc: BlendSpaceDocument,
-    axes: tuple[AxisRange, AxisRange],
+    position: FloatArray,
     by_name: dict[str, Marker],
 ) -> Problem | None:
-    """The area that shows a diagnostic in the diagram, by rule; None when it has no place."""
+    """The area that shows a diagnostic in the diagram, by rule; None when it has no place.
+    ``position`` is the finding's position in pixels (NaN without one)."""
     members = [(by_name[c].x, by_name[c].y) for c in diagnostic.clips if c in by_name]
-    where = _position_pixel(diagnostic.position, scene.layout, axes)
+    where = None if np.isnan(position).any() else (float(position[0]), float(position[1]))
 
     def make(
         kind: ProblemKind, points: list[Point], radius: float = 0.0, cross: Point | None = None
@@ -309,14 +349,6 @@ def _problem(
 def _pixel(normalised: Point, layout: Layout) -> Point:
     projected = layout.project(np.asarray([normalised]))
     return float(projected[0, 0]), float(projected[0, 1])
-
-
-def _position_pixel(
-    position: list[float] | None, layout: Layout, axes: tuple[AxisRange, AxisRange]
-) -> Point | None:
-    if position is None or len(position) != 2:
-        return None
-    return _pixel(tuple(normalise(np.asarray([position], dtype=np.float64), axes)[0]), layout)
 
 
 def problem_colour(rule: str) -> tuple[int, int, int]:

@@ -21,13 +21,14 @@ from typing import Any
 
 import numpy as np
 
+from blendspace_pipeline.features import FEATURE_UNITS
 from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report import tables
 from blendspace_pipeline.report.atomic import atomic_path
 from blendspace_pipeline.report.diagram import Layout, Scene, axis_ranges, build_scene, convex_hull
 from blendspace_pipeline.report.heatmap import css_gradient, heat_rgba, png_data_uri, scale_maximum
-from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map
+from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map, is_lod, lod_data
 from blendspace_pipeline.report.trajectory_error import (
     TrajectoryErrorGrid,
     document_trajectory_error,
@@ -36,7 +37,7 @@ from blendspace_pipeline.report.trajectory_error import (
     manual_triangles,
     measured_positions,
 )
-from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument
+from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, ClipInfoDoc, DiagnosticDoc
 from blendspace_pipeline.space.geometry import normalise
 from blendspace_pipeline.space.runtime_blend import DEFAULT_HORIZON, runtime_grid
 
@@ -90,22 +91,44 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
         manual=document_trajectory_error(doc, manual=True) if has_manual_positions(doc) else None,
     )
     stamp = stamp or build_stamp()
+    # Every row of the long tables is rendered once, here: the page shows the first page of each
+    # and the embedded data carries them all for the script's paging and filtering.
+    # The long tables show their first page as HTML rendered here; the script renders the other
+    # pages (and filtered ones) from the embedded data with the same markup (`report.js` rows).
+    page = tables.PAGE_SIZE
+    rows = {
+        "diagnostics-table": tables.diagnostic_rows(doc, page),
+        "placeholders-table": tables.placeholder_rows(doc, page),
+        "clips-table": tables.clip_rows(doc, page),
+    }
     body = "".join(
         [
             _summary(doc, scene, trajectory),
             _diagram_section(scene),
             _section(
-                "diagnostics", "Diagnostics", tables.diagnostic_filters(doc) + tables.diagnostics_table(doc)
+                "diagnostics",
+                "Diagnostics",
+                tables.diagnostic_filters(doc) + tables.diagnostics_table(doc, rows["diagnostics-table"]),
             ),
             _refused_section(doc),
-            _section("placeholders", "Clips to add", _placeholder_intro() + tables.placeholders_table(doc)),
+            _section(
+                "placeholders",
+                "Clips to add",
+                _placeholder_intro() + tables.placeholders_table(doc, rows["placeholders-table"]),
+            ),
             _coverage_section(doc, scene),
             _trajectory_section(doc, scene, trajectory),
             _engine_section(doc, scene),
-            _section("clips", "Clips", tables.clips_table(doc)),
+            _section("clips", "Clips", tables.clips_table(doc, rows["clips-table"])),
             _section("build", "Build", tables.build_table(doc, stamp)),
         ]
     )
+    data = _data(doc, scene, trajectory)
+    data["page_size"] = page
+    data["feature_columns"] = tables.feature_columns(doc)
+    data["units"] = dict(FEATURE_UNITS)
+    if is_lod(scene):
+        data["lod"] = lod_data(scene)
     title = escape(f"{doc.name} — blend-space report")
     return (
         f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
@@ -114,7 +137,7 @@ def render_html(doc: BlendSpaceDocument, *, stamp: str | None = None) -> str:
         f"<style>{_asset('report.css')}</style></head><body>"
         f"<header><h1>{escape(doc.name)} <small>blend-space report</small></h1></header><main>{body}</main>"
         f'<div id="tooltip" role="tooltip" hidden></div>'
-        f'<script type="application/json" id="report-data">{_script_json(_data(doc, scene, trajectory))}'
+        f'<script type="application/json" id="report-data">{_script_json(data)}'
         "</script>"
         f"<script>{_asset('report.js')}</script></body></html>\n"
     )
@@ -491,11 +514,13 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
                     "source": s.source,
                     "generated": s.generated,
                     "fix": s.fix,
-                    "features": s.features,
-                    "position": s.position,
-                    "snap": s.snapping_error,
-                    "manual": s.manual_position,
+                    "features": {k: _finite(v) for k, v in s.features.items()},
+                    "position": _finites(s.position),
+                    "snap": _finites(s.snapping_error),
+                    "manual": _finites(s.manual_position),
                     "diagnostics": involved[i],
+                    "clip": _clip_facts(s.clip),
+                    "contacts": s.contacts,
                 }
             )
             for i, s in enumerate(doc.samples)
@@ -509,11 +534,21 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
                 "hint": d.hint,
                 "fix": d.fix,
                 "clips": d.clips,
-                "position": d.position,
+                "position": _finites(d.position),
+                "where": _where(d),
             }
             for d in doc.diagnostics
         ],
-        "placeholders": [p.model_dump() for p in doc.placeholders],
+        "placeholders": [
+            {
+                "position": _finites(p.position),
+                "priority": p.priority,
+                "rule": p.rule,
+                "reason": p.reason,
+                "features": {k: _finite(v) for k, v in p.features.items()},
+            }
+            for p in doc.placeholders
+        ],
         "heat": {
             "max": trajectory.maximum,
             "box": [lay.left, lay.top, lay.left + lay.plot_width, lay.top + lay.plot_height],
@@ -527,7 +562,49 @@ def _data(doc: BlendSpaceDocument, scene: Scene, trajectory: Trajectory) -> dict
 
 def _without_empty(entry: dict[str, Any]) -> dict[str, Any]:
     """Leave out null, false and empty values: the script reads a missing key the same way."""
-    return {k: v for k, v in entry.items() if v not in (None, False, [], {})}
+    return {
+        k: v for k, v in entry.items() if not (v is None or v is False or (type(v) in (list, dict) and not v))
+    }
+
+
+def _finite(value: float) -> float | None:
+    """NaN and infinities as null: JSON has neither. Values keep full precision so that the
+    script's tables format them exactly as the Python-rendered first page does."""
+    return value if math.isfinite(value) else None
+
+
+def _finites(values: Sequence[float] | None) -> list[float | None] | None:
+    return None if values is None else [_finite(v) for v in values]
+
+
+def _where(diagnostic: DiagnosticDoc) -> str | None:
+    location = diagnostic.location
+    if location is None:
+        return None
+    return f"{location.path}:{location.line}" if location.line else location.path
+
+
+def _clip_facts(info: ClipInfoDoc | None) -> dict[str, Any] | None:
+    """What the clip table shows of a clip beyond its features (short keys: one per clip)."""
+    if info is None:
+        return None
+    return _without_empty(
+        {
+            "duration": info.duration,
+            "fps": info.fps,
+            "frames": info.frames,
+            "mpu": info.meters_per_unit,
+            "units": info.units_source,
+            "up": info.up_axis,
+            "root": info.root,
+            "facing": info.facing,
+            "range": info.range,
+            "auto": info.range_auto,
+            "guesses": info.guesses,
+            "notes": info.notes,
+            "phases": info.plant_phases,
+        }
+    )
 
 
 def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
@@ -542,18 +619,21 @@ def _grid_data(grid: TrajectoryErrorGrid) -> dict[str, Any]:
     return {"ex": short(grid.error_x), "ey": short(grid.error_y)}
 
 
-def _compact(value: Any) -> Any:
-    """Round floats to `SIGNIFICANT` digits and turn NaN into null, recursively."""
-    if isinstance(value, float):
-        return None if not math.isfinite(value) else float(f"{value:.{SIGNIFICANT}g}")
-    if isinstance(value, dict):
-        return {k: _compact(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_compact(v) for v in value]
-    return value
-
-
 def _script_json(data: dict[str, Any]) -> str:
     """JSON safe inside <script>: no `</script>` or `<!--` can appear in a string."""
-    text = json.dumps(_compact(data), separators=(",", ":"), ensure_ascii=False)
+    try:
+        text = json.dumps(data, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    except ValueError:  # a NaN or infinity the gathering did not expect: null, as JSON allows
+        text = json.dumps(_finite_all(data), separators=(",", ":"), ensure_ascii=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def _finite_all(value: Any) -> Any:
+    """NaN and infinities as null, recursively (the slow path of `_script_json`)."""
+    if isinstance(value, float):
+        return _finite(value)
+    if isinstance(value, dict):
+        return {k: _finite_all(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_all(v) for v in value]
+    return value

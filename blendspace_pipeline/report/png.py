@@ -1,22 +1,23 @@
 """`N.png`: the blend-space diagram for CI pages, chat and thumbnails, drawn with OpenImageIO.
 
 The only module of the package that imports OpenImageIO. It draws the same `diagram.Scene` as
-the HTML report: translucent areas (uncovered hatch, acute triangles, too-close clusters) are
-painted with numpy first, then grid, edges, outlines and markers are rasterised in numpy too
-(`_Pen`: thousands of segments and markers at once, so 10,000 samples cost about as much as a
-few hundred), and OIIO draws the text and the legend. Everything is drawn at twice the size and
-reduced with a box filter, which anti-aliases the one-pixel lines and text without changing the
-colour at a marker's centre.
+the HTML report, all in a numpy canvas: translucent areas (uncovered hatch, acute triangles,
+too-close clusters) as pixel-row spans of every shape at once, then grid, edges, outlines and
+markers (`_Pen`: thousands of segments and markers per vectorised call), so the cost is pixels
+plus shapes, not a Python loop per sample. OIIO renders each piece of text on a small patch (its
+coverage is blended in) and writes the file. Everything is drawn at twice the size and reduced
+with a box filter, which anti-aliases the one-pixel lines and text without changing the colour
+at a marker's centre.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 import warnings
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import OpenImageIO as oiio
@@ -41,6 +42,7 @@ PNG_LAYOUT = Layout(width=1280, height=960, left=84, right=270, top=78, bottom=7
 SCALE = 2  # supersampling factor
 LABEL_LIMIT = 60  # more samples than this: names would hide the diagram
 Colour = tuple[float, float, float]
+Canvas = np.ndarray[Any, np.dtype[np.float32]]  # (height, width, 3) RGB
 
 
 def write_png(doc: BlendSpaceDocument, path: Path) -> None:
@@ -59,20 +61,17 @@ def render(doc: BlendSpaceDocument) -> oiio.ImageBuf:
     pen = _Pen(canvas)
     _draw_frame(pen, scene)
     _draw_problems(pen, scene)
-    buf = oiio.ImageBuf(oiio.ImageSpec(big.width, big.height, 3, "float"))
-    roi = oiio.ROI(0, big.width, 0, big.height, 0, 1, 0, 3)
+    _draw_swatches(pen, scene)
     if len(scene.samples) <= LABEL_LIMIT:
-        # Names go under the markers (a neighbour's label must not cover a marker's centre): OIIO
-        # draws them on the canvas so far, the markers follow on its result.
-        buf.set_pixels(roi, canvas.astype(np.float32))
-        _draw_labels(buf, scene)
-        pen = _Pen(np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float64).reshape(canvas.shape))
+        # Names go under the markers: a neighbour's label must not cover a marker's centre.
+        _draw_labels(canvas, scene)
     _draw_markers(pen, scene)
-    buf.set_pixels(roi, pen.canvas.astype(np.float32))
-    _draw_titles(buf, scene, doc)
-    _draw_legend(buf, scene)
+    _draw_titles(canvas, scene, doc)
+    _draw_legend(canvas, scene)
+    # The box filter as a mean of SCALE x SCALE blocks, in numpy.
+    mean = sum(canvas[dy::SCALE, dx::SCALE] for dy in range(SCALE) for dx in range(SCALE)) / SCALE**2
     small = oiio.ImageBuf(oiio.ImageSpec(PNG_LAYOUT.width, PNG_LAYOUT.height, 3, "float"))
-    algo.resize(small, buf, filtername="box")
+    small.set_pixels(oiio.ROI(0, PNG_LAYOUT.width, 0, PNG_LAYOUT.height, 0, 1, 0, 3), mean)
     return small
 
 
@@ -95,153 +94,207 @@ def _c(rgb: tuple[int, int, int]) -> Colour:
 
 
 # ---- translucent areas, painted in numpy --------------------------------------------------------
+#
+# Every area is rasterised as pixel-row spans (one span per row for a convex polygon or a disc),
+# all shapes of one colour at once: a difference array along each row, summed, counts how many
+# shapes cover each pixel, and k translucent layers of one colour blend as one layer of alpha
+# 1 - (1 - alpha)^k. The cost is spans + pixels, whatever the number or the size of the shapes.
+
+AREA_ALPHA = {"polygon": 0.35, "circle": 0.15}
+HATCH_ALPHA = 0.45
 
 
-def _paint_areas(scene: Scene) -> FloatArray:
+def _paint_areas(scene: Scene) -> Canvas:
     lay = scene.layout
-    canvas = np.empty((lay.height, lay.width, 3), dtype=np.float64)
+    canvas = np.empty((lay.height, lay.width, 3), dtype=np.float32)
     canvas[:] = _rgb("background")
     left, top = lay.left, lay.top
     right, bottom = int(lay.left + lay.plot_width), int(lay.top + lay.plot_height)
     canvas[top:bottom, left:right] = _rgb("plot")
+    # Shapes grouped by (kind, colour) in the order the findings list them.
+    groups: dict[tuple[str, Colour], list[Problem]] = {}
     for problem in scene.problems:
         if problem.kind == "region":
-            _hatch_outside(canvas, problem.points, (left, top, right, bottom))
-        elif problem.kind == "polygon":
-            _fill(canvas, _polygon_mask(canvas, problem.points), _c(problem_colour(problem.rule)), 0.35)
-        elif problem.kind == "circle":
-            _fill(
-                canvas,
-                _disc_mask(canvas, problem.points[0], problem.radius),
-                _c(problem_colour(problem.rule)),
-                0.15,
-            )
+            groups.setdefault(("region", _rgb("uncovered-area")), []).append(problem)
+        elif problem.kind in AREA_ALPHA:
+            groups.setdefault((problem.kind, _c(problem_colour(problem.rule))), []).append(problem)
+    height, width = canvas.shape[:2]
+    for (kind, colour), problems in groups.items():
+        if kind == "region":
+            _hatch_outside(canvas, problems[0].points, (left, top, right, bottom))
+            continue
+        if kind == "polygon":
+            spans = _polygon_spans([np.asarray(p.points, dtype=np.float64) for p in problems], height, width)
+        else:
+            centres = np.array([p.points[0] for p in problems], dtype=np.float64).reshape(-1, 2)
+            spans = _disc_spans(centres, np.array([p.radius for p in problems]), height, width)
+        _blend_spans(canvas, spans, colour, AREA_ALPHA[kind])
     return canvas
 
 
-def _fill(
-    canvas: FloatArray, mask: tuple[slice, slice, np.ndarray] | None, colour: Colour, alpha: float
-) -> None:
-    if mask is None:
+def _span_pixels(spans: Spans, width: int) -> np.ndarray:
+    """Flat pixel index of every pixel of every span."""
+    rows, c0, c1 = spans
+    lengths = c1 - c0 + 1
+    pixels: np.ndarray = np.repeat(rows * width + c0, lengths) + _ramp(lengths)
+    return pixels
+
+
+def _blend_spans(canvas: Canvas, spans: Spans, colour: Colour, alpha: float) -> None:
+    """Blend the spans' shapes over the canvas (k overlapping shapes as one layer of alpha
+    1 - (1 - alpha)^k). Few pixels (small shapes over a big plot): their flat indices, counted
+    by sorting; many: the coverage counts of `_coverage` over the spans' bounding box."""
+    rows, c0, c1 = spans
+    if not len(rows):
         return
-    rows, cols, inside = mask
-    region = canvas[rows, cols]
-    region[inside] = (1.0 - alpha) * region[inside] + alpha * np.asarray(colour)
+    width = canvas.shape[1]
+    area = (int(rows.max()) - int(rows.min()) + 1) * (int(c1.max()) - int(c0.min()) + 1)
+    if int((c1 - c0 + 1).sum()) * 4 > area:
+        _blend(canvas, _coverage(spans), colour, alpha)
+        return
+    pixel, count = np.unique(_span_pixels(spans, width), return_counts=True)
+    _mix(canvas, pixel, count, colour, alpha)
 
 
-def _bounds(canvas: FloatArray, xs: Sequence[float], ys: Sequence[float]) -> tuple[slice, slice] | None:
-    height, width = canvas.shape[:2]
-    x0, x1 = max(0, int(min(xs))), min(width, math.ceil(max(xs)) + 1)
-    y0, y1 = max(0, int(min(ys))), min(height, math.ceil(max(ys)) + 1)
-    if x0 >= x1 or y0 >= y1:
-        return None
-    return slice(y0, y1), slice(x0, x1)
+def _mix(canvas: Canvas, pixel: np.ndarray, count: np.ndarray, colour: Colour, alpha: float) -> None:
+    """``count[i]`` layers of ``colour`` at ``alpha`` over flat pixel ``pixel[i]``."""
+    levels = np.power(np.float32(1.0 - alpha), np.arange(int(count.max()) + 1, dtype=np.float32))
+    mix = (1.0 - levels[count])[:, None]
+    pixels = canvas.reshape(-1, 3)
+    values = pixels[pixel]
+    pixels[pixel] = values + mix * (np.asarray(colour, dtype=np.float32) - values)
 
 
-def _polygon_mask(canvas: FloatArray, points: list[Point]) -> tuple[slice, slice, np.ndarray] | None:
-    """Pixels inside a convex polygon, within its bounding box.
+Spans = tuple[np.ndarray, np.ndarray, np.ndarray]  # row, first column, last column (inclusive)
 
-    Convex, so each pixel row crosses it in one span: intersect the row with every edge and
-    keep the extremes. Rows × edges work instead of pixels × edges, which matters for the hull.
+
+def _polygon_spans(polygons: Sequence[FloatArray], height: int, width: int) -> Spans:
+    """Pixel-row spans of convex polygons (pixels whose centre is inside), all at once.
+
+    Convex, so each row crosses a polygon in one span: intersect the row with every edge of its
+    polygon and keep the extremes. Rows x edges work instead of pixels x edges.
     """
-    box = _bounds(canvas, [p[0] for p in points], [p[1] for p in points])
-    if box is None or len(points) < 3:
-        return None
-    ys = np.arange(box[0].start, box[0].stop) + 0.5
-    xs = np.arange(box[1].start, box[1].stop) + 0.5
-    low, high = np.full(ys.shape, np.inf), np.full(ys.shape, -np.inf)
-    for (ax, ay), (bx, by) in zip(points, points[1:] + points[:1], strict=True):
-        if ay == by:
-            continue  # a horizontal edge adds nothing its neighbours' end points do not
-        t = (ys - ay) / (by - ay)
-        crossing = (t >= 0.0) & (t <= 1.0)
-        x = ax + t * (bx - ax)
-        low = np.where(crossing, np.minimum(low, x), low)
-        high = np.where(crossing, np.maximum(high, x), high)
-    inside = (xs[None, :] >= low[:, None]) & (xs[None, :] <= high[:, None])
-    return box[0], box[1], inside
+    polygons = [p for p in polygons if len(p) >= 3]
+    if not polygons:
+        return _no_spans()
+    counts = np.array([len(p) for p in polygons], dtype=np.int64)
+    a = np.concatenate(polygons)
+    first = np.cumsum(counts) - counts
+    following = np.arange(len(a)) + 1
+    following[first + counts - 1] = first  # each polygon's last edge closes it
+    b = a[following]
+    row0 = np.maximum(np.ceil(np.minimum.reduceat(a[:, 1], first) - 0.5), 0).astype(np.int64)
+    row1 = np.minimum(np.floor(np.maximum.reduceat(a[:, 1], first) - 0.5), height - 1).astype(np.int64)
+    rows_of = np.maximum(row1 - row0 + 1, 0)
+    polygon = np.repeat(np.arange(len(counts)), rows_of)
+    if not len(polygon):
+        return _no_spans()
+    rows = row0[polygon] + _ramp(rows_of)
+    # Every (row, edge of its polygon) pair; a row's pairs are contiguous for `reduceat`.
+    pair_row = np.repeat(np.arange(len(rows)), counts[polygon])
+    edge = first[polygon][pair_row] + _ramp(counts[polygon])
+    y = rows[pair_row] + 0.5
+    ay, by = a[edge, 1], b[edge, 1]
+    flat = ay == by  # a horizontal edge adds nothing its neighbours' end points do not
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(flat, -1.0, (y - ay) / np.where(flat, 1.0, by - ay))
+    crossing = (t >= 0.0) & (t <= 1.0)
+    x = a[edge, 0] + t * (b[edge, 0] - a[edge, 0])
+    starts = np.cumsum(counts[polygon]) - counts[polygon]
+    low = np.minimum.reduceat(np.where(crossing, x, np.inf), starts)
+    high = np.maximum.reduceat(np.where(crossing, x, -np.inf), starts)
+    return _clip_spans(rows, low, high, width)
 
 
-def _disc_mask(canvas: FloatArray, centre: Point, radius: float) -> tuple[slice, slice, np.ndarray] | None:
-    cx, cy = centre
-    box = _bounds(canvas, [cx - radius, cx + radius], [cy - radius, cy + radius])
-    if box is None:
-        return None
-    yy, xx = np.mgrid[box[0], box[1]] + 0.5
-    return box[0], box[1], (xx - cx) ** 2 + (yy - cy) ** 2 <= radius**2
+def _disc_spans(centres: FloatArray, radii: FloatArray, height: int, width: int) -> Spans:
+    """Pixel-row spans of discs (pixels whose centre is within the radius), all at once."""
+    if not len(centres):
+        return _no_spans()
+    row0 = np.maximum(np.ceil(centres[:, 1] - radii - 0.5), 0).astype(np.int64)
+    row1 = np.minimum(np.floor(centres[:, 1] + radii - 0.5), height - 1).astype(np.int64)
+    rows_of = np.maximum(row1 - row0 + 1, 0)
+    disc = np.repeat(np.arange(len(centres)), rows_of)
+    rows = row0[disc] + _ramp(rows_of)
+    dy = rows + 0.5 - centres[disc, 1]
+    half = np.sqrt(np.maximum(radii[disc] ** 2 - dy**2, 0.0))
+    return _clip_spans(rows, centres[disc, 0] - half, centres[disc, 0] + half, width)
 
 
-def _hatch_outside(canvas: FloatArray, hull: list[Point], box: tuple[int, int, int, int]) -> None:
-    """Diagonal hatching over the plot outside the hull: the uncovered area."""
+def _ramp(lengths: np.ndarray) -> np.ndarray:
+    """0, 1, ..., n-1 for every n in ``lengths``, concatenated."""
+    lengths = np.asarray(lengths, dtype=np.int64)
+    total = int(lengths.sum())
+    ramp: np.ndarray = np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    return ramp
+
+
+def _no_spans() -> Spans:
+    empty = np.zeros(0, dtype=np.int64)
+    return empty, empty, empty
+
+
+def _clip_spans(rows: np.ndarray, low: FloatArray, high: FloatArray, width: int) -> Spans:
+    with np.errstate(invalid="ignore"):
+        c0 = np.maximum(np.ceil(low - 0.5), 0)
+        c1 = np.minimum(np.floor(high - 0.5), width - 1)
+    keep = np.isfinite(c0) & np.isfinite(c1) & (c0 <= c1)
+    return rows[keep], c0[keep].astype(np.int64), c1[keep].astype(np.int64)
+
+
+def _coverage(spans: Spans) -> tuple[np.ndarray, int, int]:
+    """How many spans cover each pixel of the spans' bounding box, and the box's top-left pixel
+    (row, column): +1 at a span's start, -1 after its end, summed along each row."""
+    rows, c0, c1 = spans
+    if not len(rows):
+        return np.zeros((0, 0), dtype=np.int64), 0, 0
+    top, left = int(rows.min()), int(c0.min())
+    height, width = int(rows.max()) - top + 1, int(c1.max()) - left + 1
+    stride = width + 1
+    size = height * stride
+    at = (rows - top) * stride - left
+    diff = np.bincount(at + c0, minlength=size) - np.bincount(at + c1 + 1, minlength=size)
+    return np.cumsum(diff.reshape(height, stride)[:, :width], axis=1), top, left
+
+
+def _blend(canvas: Canvas, coverage: tuple[np.ndarray, int, int], colour: Colour, alpha: float) -> None:
+    """``count`` layers of ``colour`` at ``alpha`` over the canvas (count 0 leaves a pixel as is),
+    in place over the coverage's box: shapes this dense are cheapest as whole-array arithmetic."""
+    count, top, left = coverage
+    if not count.size:
+        return
+    # Spans are clipped to the canvas, so the box lies inside it.
+    region = canvas[top : top + count.shape[0], left : left + count.shape[1]]
+    # 1 - (1 - alpha)^k for every count, looked up rather than raised per pixel.
+    levels = 1.0 - np.power(np.float32(1.0 - alpha), np.arange(int(count.max()) + 1, dtype=np.float32))
+    change = np.asarray(colour, dtype=np.float32) - region
+    change *= levels[count][..., None]
+    region += change
+
+
+def _hatch_outside(canvas: Canvas, hull: list[Point], box: tuple[int, int, int, int]) -> None:
+    """Diagonal hatching over the plot outside the hull: the uncovered area.
+
+    The plot rows minus the hull's span on each row are spans too: only the uncovered pixels
+    are visited (a few percent of the plot when the samples cover most of it).
+    """
     left, top, right, bottom = box
-    yy, xx = np.mgrid[top:bottom, left:right]
-    stripes = (xx + yy) % (8 * SCALE) < 3 * SCALE
-    inside = np.zeros_like(stripes)
+    height, width = canvas.shape[:2]
+    rows = np.arange(top, bottom)
+    start, end = np.full(rows.shape, right), np.full(rows.shape, left - 1)  # hull span: empty
     if len(hull) >= 3:
-        mask = _polygon_mask(canvas, hull)
-        if mask is not None:
-            full = np.zeros(canvas.shape[:2], dtype=bool)
-            full[mask[0], mask[1]] = mask[2]
-            inside = full[top:bottom, left:right]
-    _fill(canvas, (slice(top, bottom), slice(left, right), stripes & ~inside), _rgb("uncovered-area"), 0.45)
-
-
-# ---- lines and shapes, drawn with OpenImageIO ---------------------------------------------------
-
-
-def _line(buf: oiio.ImageBuf, a: Point, b: Point, colour: Colour, width: float = 1.0) -> None:
-    """A line ``width`` pixels wide, as parallel one-pixel lines along its normal."""
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    length = math.hypot(dx, dy) or 1.0
-    nx, ny = -dy / length, dx / length
-    # Half-pixel steps: whole-pixel offsets along a diagonal normal round onto the same rows
-    # and leave gaps.
-    for offset in np.arange(-(width - 1) / 2.0, (width - 1) / 2.0 + 0.01, 0.5):
-        ox, oy = nx * offset, ny * offset
-        algo.render_line(
-            buf,
-            round(a[0] + ox),
-            round(a[1] + oy),
-            round(b[0] + ox),
-            round(b[1] + oy),
-            colour,
-            skip_first_point=False,
-        )
-
-
-def _circle(buf: oiio.ImageBuf, centre: Point, radius: float, colour: Colour, width: float) -> None:
-    segments = max(24, int(radius))
-    points = [
-        (
-            centre[0] + radius * math.cos(2 * math.pi * k / segments),
-            centre[1] + radius * math.sin(2 * math.pi * k / segments),
-        )
-        for k in range(segments + 1)
-    ]
-    for a, b in itertools.pairwise(points):
-        _line(buf, a, b, colour, width)
-
-
-def _disc(buf: oiio.ImageBuf, centre: Point, radius: float, colour: Colour) -> None:
-    """Filled disc as one box per scanline (OIIO has no filled-circle primitive)."""
-    cx, cy = round(centre[0]), round(centre[1])
-    r = round(radius)
-    for dy in range(-r, r + 1):
-        half = math.floor(math.sqrt(max(0.0, radius * radius - dy * dy)))
-        algo.render_box(buf, cx - half, cy + dy, cx + half, cy + dy, colour, fill=True)
-
-
-def _diamond(buf: oiio.ImageBuf, centre: Point, radius: float, colour: Colour) -> None:
-    cx, cy = round(centre[0]), round(centre[1])
-    r = round(radius)
-    for dy in range(-r, r + 1):
-        half = r - abs(dy)
-        algo.render_box(buf, cx - half, cy + dy, cx + half, cy + dy, colour, fill=True)
-
-
-def _square(buf: oiio.ImageBuf, centre: Point, radius: float, colour: Colour) -> None:
-    cx, cy, r = round(centre[0]), round(centre[1]), round(radius)
-    algo.render_box(buf, cx - r, cy - r, cx + r, cy + r, colour, fill=True)
+        hull_rows, c0, c1 = _polygon_spans([np.asarray(hull, dtype=np.float64)], height, width)
+        on_plot = (hull_rows >= top) & (hull_rows < bottom)
+        start[hull_rows[on_plot] - top] = np.maximum(c0[on_plot], left)
+        end[hull_rows[on_plot] - top] = np.minimum(c1[on_plot], right - 1)
+    crossed = start <= end
+    before = (rows, np.full(rows.shape, left), np.where(crossed, start - 1, right - 1))
+    after = (rows[crossed], end[crossed] + 1, np.full(int(crossed.sum()), right - 1))
+    spans = tuple(np.concatenate([a, b]) for a, b in zip(before, after, strict=True))
+    keep = spans[1] <= spans[2]
+    pixel = _span_pixels((spans[0][keep], spans[1][keep], spans[2][keep]), width)
+    stripes = pixel[(pixel // width + pixel % width) % (8 * SCALE) < 3 * SCALE]
+    if len(stripes):
+        _mix(canvas, stripes, np.ones(len(stripes), dtype=np.int64), _rgb("uncovered-area"), HATCH_ALPHA)
 
 
 class _Pen:
@@ -250,11 +303,11 @@ class _Pen:
     A line ``width`` pixels wide is parallel one-pixel lines half a pixel apart along its normal
     (whole-pixel offsets along a diagonal normal round onto the same rows and leave gaps), each
     from its rounded end point to the other, one pixel per step along its longer extent. Filled
-    markers (disc, square, diamond) are one span per scanline, like OIIO's boxes were. Colours
-    are opaque: a later shape covers an earlier one.
+    markers (disc, square, diamond) are one span per scanline. Colours are opaque: a later shape
+    covers an earlier one.
     """
 
-    def __init__(self, canvas: FloatArray):
+    def __init__(self, canvas: Canvas):
         self.canvas = canvas
         self.height, self.width = canvas.shape[:2]
 
@@ -274,8 +327,7 @@ class _Pen:
         b = np.round(ends[None] + shifted).reshape(-1, 2).astype(np.int64)
         steps = np.abs(b - a).max(axis=1) + 1  # pixels per one-pixel line
         line = np.repeat(np.arange(len(a)), steps)
-        first = np.cumsum(steps) - steps
-        along = (np.arange(int(steps.sum())) - first[line]) / np.maximum(steps[line] - 1, 1)
+        along = _ramp(steps) / np.maximum(steps[line] - 1, 1)
         xs = np.round(a[line, 0] + along * (b[line, 0] - a[line, 0])).astype(np.int64)
         ys = np.round(a[line, 1] + along * (b[line, 1] - a[line, 1])).astype(np.int64)
         self._paint(xs, ys, colour)
@@ -283,11 +335,13 @@ class _Pen:
     def line(self, a: Point, b: Point, colour: Colour, width: float = 1.0) -> None:
         self.lines(np.array([a]), np.array([b]), colour, width)
 
+    def circles(self, centres: FloatArray, radii: FloatArray, colour: Colour, width: float) -> None:
+        """Circle outlines, max(24, radius) segments each, all in one `lines` call."""
+        starts, ends = _circle_segments(centres, radii)
+        self.lines(starts, ends, colour, width)
+
     def circle(self, centre: Point, radius: float, colour: Colour, width: float) -> None:
-        segments = max(24, int(radius))
-        angle = 2.0 * np.pi * np.arange(segments + 1) / segments
-        points = np.stack([centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)], axis=1)
-        self.lines(points[:-1], points[1:], colour, width)
+        self.circles(np.array([centre]), np.array([radius]), colour, width)
 
     def markers(
         self,
@@ -301,47 +355,69 @@ class _Pen:
         centres = np.round(np.asarray(centres, dtype=np.float64).reshape(-1, 2)).astype(np.int64)
         if not len(centres):
             return
-        # Each kind's layers flattened into one template of pixel offsets and colour indices; a
-        # pixel a later layer of the same marker paints again is left out of the earlier one.
-        dxs, dys, colour_ids, sizes = [], [], [], []
+        kinds = np.asarray(kinds, dtype=np.int64)
+        # Each kind's layers as one template: the palette index per offset from the centre, a
+        # later layer over an earlier one (-1: not covered).
+        reach = max(round(radius) for layers in layers_for for _, radius, _ in layers)
+        side = 2 * reach + 1
+        template = np.full((len(layers_for), side, side), -1, dtype=np.int64)
         palette: list[Colour] = []
-        for layers in layers_for:
-            covered: dict[tuple[int, int], int] = {}
+        for kind, layers in enumerate(layers_for):
             for shape, radius, colour in layers:
-                for offset in zip(*(a.tolist() for a in _shape_offsets(shape, radius)), strict=True):
-                    covered.pop(offset, None)
-                    covered[offset] = len(palette)
+                dx, dy = _shape_offsets(shape, radius)
+                template[kind, dy + reach, dx + reach] = len(palette)
                 palette.append(colour)
-            dxs.append(np.array([x for x, _ in covered], dtype=np.int64))
-            dys.append(np.array([y for _, y in covered], dtype=np.int64))
-            colour_ids.append(np.array(list(covered.values()), dtype=np.int64))
-            sizes.append(len(covered))
-        template_start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        template_dx, template_dy = np.concatenate(dxs), np.concatenate(dys)
-        template_colour = np.concatenate(colour_ids)
-        counts = np.asarray(sizes, dtype=np.int64)[kinds]
-        marker = np.repeat(np.arange(len(centres)), counts)
-        first = np.cumsum(counts) - counts
-        slot = template_start[kinds][marker] + np.arange(int(counts.sum())) - first[marker]
-        xs = centres[marker, 0] + template_dx[slot]
-        ys = centres[marker, 1] + template_dy[slot]
-        keep = (xs >= 0) & (xs < self.width) & (ys >= 0) & (ys < self.height)
-        flat = (ys * self.width + xs)[keep]
-        # The last write to each pixel wins: the highest write index that reaches it.
-        last = np.full(self.width * self.height, -1, dtype=np.int64)
-        np.maximum.at(last, flat, np.arange(len(flat)))
-        pixels = np.flatnonzero(last >= 0)
-        colours = np.array(palette, dtype=np.float64)[template_colour[slot[keep]][last[pixels]]]
-        self.canvas.reshape(-1, 3)[pixels] = colours
+        # Z-buffer: the highest marker index whose template covers a pixel is the one on top.
+        # One vectorised pass per template offset (a few hundred), each over all markers.
+        # The buffer spans the markers' bounding box grown by the template's reach (so no offset
+        # falls outside it); what lies beyond the canvas is dropped when the colours are written.
+        x0, y0 = int(centres[:, 0].min()) - reach, int(centres[:, 1].min()) - reach
+        width = int(centres[:, 0].max()) + reach + 1 - x0
+        height = int(centres[:, 1].max()) + reach + 1 - y0
+        top = np.full(height * width, -1, dtype=np.int64)
+        covered_by_kind = template >= 0
+        # Per kind: its markers' buffer positions (at offset 0) and indices, gathered once.
+        base = (centres[:, 1] - y0) * width + (centres[:, 0] - x0)
+        members_of = [np.flatnonzero(kinds == kind) for kind in range(len(layers_for))]
+        by_kind = [(kind, base[members], members) for kind, members in enumerate(members_of) if len(members)]
+        for oy, ox in zip(*np.nonzero(covered_by_kind.any(axis=0)), strict=True):
+            shift = (oy - reach) * width + (ox - reach)
+            for kind, at, members in by_kind:
+                if covered_by_kind[kind, oy, ox]:
+                    np.maximum.at(top, at + shift, members)
+        pixels = np.flatnonzero(top >= 0)
+        marker = top[pixels]
+        py, px = pixels // width + y0, pixels % width + x0
+        colours = np.array(palette, dtype=np.float32)[
+            template[kinds[marker], py - centres[marker, 1] + reach, px - centres[marker, 0] + reach]
+        ]
+        inside = (px >= 0) & (px < self.width) & (py >= 0) & (py < self.height)
+        py, px, colours = py[inside], px[inside], colours[inside]
+        self.canvas[py, px] = colours
 
     def _paint(self, xs: np.ndarray, ys: np.ndarray, colour: Colour) -> None:
         keep = (xs >= 0) & (xs < self.width) & (ys >= 0) & (ys < self.height)
-        self.canvas[ys[keep], xs[keep]] = colour
+        self.canvas.reshape(-1, 3)[ys[keep] * self.width + xs[keep]] = colour
+
+
+def _circle_segments(centres: FloatArray, radii: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Segment start and end points of circle outlines, max(24, int(radius)) segments each."""
+    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+    radii = np.asarray(radii, dtype=np.float64).reshape(-1)
+    segments = np.maximum(24, radii.astype(np.int64))
+    circle = np.repeat(np.arange(len(centres)), segments)
+    step = _ramp(segments)
+    angle0 = 2.0 * np.pi * step / segments[circle]
+    angle1 = 2.0 * np.pi * (step + 1) / segments[circle]
+    r = radii[circle][:, None]
+    starts = centres[circle] + r * np.stack([np.cos(angle0), np.sin(angle0)], axis=1)
+    ends = centres[circle] + r * np.stack([np.cos(angle1), np.sin(angle1)], axis=1)
+    return starts, ends
 
 
 @cache
 def _shape_offsets(shape: str, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel offsets of a filled marker, one span per scanline (as `_disc`, `_square`, `_diamond`)."""
+    """Pixel offsets of a filled marker, one span per scanline (disc, square or diamond)."""
     r = round(radius)
     xs: list[int] = []
     ys: list[int] = []
@@ -381,36 +457,45 @@ def _draw_frame(pen: _Pen, scene: Scene) -> None:
 
 
 def _draw_problems(pen: _Pen, scene: Scene) -> None:
-    """Outlines over the edges: crossing edges, acute triangles, clusters, rings."""
+    """Outlines over the edges: crossing edges, acute triangles, clusters, rings.
+
+    Segments are gathered per (colour, width) in the findings' order and drawn in one call each:
+    thousands of rings cost one vectorised pass, not one call per ring.
+    """
+    segments: dict[tuple[Colour, float], list[tuple[FloatArray, FloatArray]]] = {}
+    circles: dict[tuple[Colour, float], list[tuple[Point, float]]] = {}
+
+    def add(colour: Colour, width: float, starts: FloatArray, ends: FloatArray) -> None:
+        segments.setdefault((colour, width), []).append((starts, ends))
+
     for problem in scene.problems:
         colour = _c(problem_colour(problem.rule))
         if problem.kind == "edge":
-            pen.line(problem.points[0], problem.points[1], colour, 4 * SCALE)
-            _cross(pen, problem, colour)
+            add(colour, 4 * SCALE, np.array(problem.points[:1]), np.array(problem.points[1:2]))
+            if problem.cross is not None:
+                x, y, d = problem.cross[0], problem.cross[1], 6 * SCALE
+                add(colour, 2 * SCALE, np.array([(x - d, y - d), (x - d, y + d)]),
+                    np.array([(x + d, y + d), (x + d, y - d)]))  # fmt: skip
         elif problem.kind == "polygon":
             corners = np.array(problem.points, dtype=np.float64)
-            pen.lines(corners, np.roll(corners, -1, axis=0), colour, 1.5 * SCALE)
+            add(colour, 1.5 * SCALE, corners, np.roll(corners, -1, axis=0))
         elif problem.kind == "circle":
-            pen.circle(problem.points[0], problem.radius, colour, 1.5 * SCALE)
+            circles.setdefault((colour, 1.5 * SCALE), []).append((problem.points[0], problem.radius))
         elif problem.kind == "rings":
             ring = colour if problem.rule in COLOURS else _severity_colour(problem.severity)
-            for centre in problem.points:
-                pen.circle(centre, problem.radius, ring, 2 * SCALE)
+            circles.setdefault((ring, 2 * SCALE), []).extend((c, problem.radius) for c in problem.points)
         elif problem.kind == "point":
-            pen.circle(problem.points[0], 7 * SCALE, _severity_colour(problem.severity), 2 * SCALE)
+            key = (_severity_colour(problem.severity), 2.0 * SCALE)
+            circles.setdefault(key, []).append((problem.points[0], 7.0 * SCALE))
+    for key, found in circles.items():
+        starts, ends = _circle_segments(np.array([c for c, _ in found]), np.array([r for _, r in found]))
+        add(*key, starts, ends)
+    for (colour, width), parts in segments.items():
+        pen.lines(np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]), colour, width)
 
 
 def _severity_colour(severity: str) -> Colour:
     return {"error": _c((214, 39, 40)), "warning": _c((201, 138, 0))}.get(severity, _c((58, 120, 194)))
-
-
-def _cross(pen: _Pen, problem: Problem, colour: Colour) -> None:
-    if problem.cross is None:
-        return
-    x, y = problem.cross
-    d = 6 * SCALE
-    pen.line((x - d, y - d), (x + d, y + d), colour, 2 * SCALE)
-    pen.line((x - d, y + d), (x + d, y - d), colour, 2 * SCALE)
 
 
 def _draw_markers(pen: _Pen, scene: Scene) -> None:
@@ -436,10 +521,12 @@ def _draw_markers(pen: _Pen, scene: Scene) -> None:
     )
 
 
-def _draw_labels(buf: oiio.ImageBuf, scene: Scene) -> None:
+def _draw_labels(canvas: Canvas, scene: Scene) -> None:
     """Clip names beside their markers (drawn only while there are few enough to read)."""
     for m in scene.samples:
-        _text(buf, m.x + (SAMPLE_RADIUS + 4) * SCALE, m.y - SAMPLE_RADIUS * SCALE, m.name, 12, _rgb("text"))
+        _text(
+            canvas, m.x + (SAMPLE_RADIUS + 4) * SCALE, m.y - SAMPLE_RADIUS * SCALE, m.name, 12, _rgb("text")
+        )
 
 
 # ---- text ---------------------------------------------------------------------------------------
@@ -460,7 +547,7 @@ def _font() -> str | None:
 
 
 def _text(
-    buf: oiio.ImageBuf,
+    canvas: Canvas,
     x: float,
     y: float,
     text: str,
@@ -469,33 +556,57 @@ def _text(
     align: str = "left",
     bold: bool = False,
 ) -> None:
+    """Text at (x, y) (baseline, OIIO's alignment): OIIO renders its coverage on a patch just
+    big enough, which is blended into the canvas, so the full-size canvas never goes through
+    OIIO."""
     font = _font()
     if font is None or not text:
         return
     name = f"{font}-Bold" if bold and font == "DroidSans" else font
-    algo.render_text(buf, round(x), round(y), text, size * SCALE, name, colour, alignx=align)
+    alpha, ox, oy = _text_coverage(text, size * SCALE, name, align)
+    left, top = round(x) - ox, round(y) - oy
+    height, width = canvas.shape[:2]
+    y0, x0 = max(top, 0), max(left, 0)
+    y1, x1 = min(top + alpha.shape[0], height), min(left + alpha.shape[1], width)
+    if y0 >= y1 or x0 >= x1:
+        return
+    cover = alpha[y0 - top : y1 - top, x0 - left : x1 - left, None]
+    region = canvas[y0:y1, x0:x1]
+    region += cover * (np.asarray(colour, dtype=np.float32) - region)
 
 
-def _draw_titles(buf: oiio.ImageBuf, scene: Scene, doc: BlendSpaceDocument) -> None:
+def _text_coverage(text: str, size: int, font: str, align: str) -> tuple[np.ndarray, int, int]:
+    """The text's coverage (0..1) on a patch, and the patch pixel of the text's origin: the patch
+    is twice the text's width around the origin, so any alignment fits."""
+    extent = algo.text_size(text, size, font)
+    width = extent.xend - extent.xbegin + 8
+    ox, oy = width + 4, 4 - extent.ybegin
+    patch = oiio.ImageBuf(oiio.ImageSpec(2 * width + 8, extent.yend - extent.ybegin + 8, 1, "float"))
+    algo.render_text(patch, ox, oy, text, size, font, (1.0,), alignx=align)
+    alpha = np.asarray(patch.get_pixels(oiio.FLOAT), dtype=np.float32).reshape(patch.spec().height, -1)
+    return alpha, ox, oy
+
+
+def _draw_titles(canvas: Canvas, scene: Scene, doc: BlendSpaceDocument) -> None:
     lay = scene.layout
     left, bottom = float(lay.left), lay.top + lay.plot_height
     for tick in scene.x_ticks:
-        _text(buf, tick.pixel, bottom + 20 * SCALE, tick.label, 13, _rgb("muted"), align="center")
+        _text(canvas, tick.pixel, bottom + 20 * SCALE, tick.label, 13, _rgb("muted"), align="center")
     for tick in scene.y_ticks:
-        _text(buf, left - 8 * SCALE, tick.pixel + 5 * SCALE, tick.label, 13, _rgb("muted"), align="right")
+        _text(canvas, left - 8 * SCALE, tick.pixel + 5 * SCALE, tick.label, 13, _rgb("muted"), align="right")
     counts = {s: sum(d.severity == s for d in doc.diagnostics) for s in ("error", "warning", "info")}
     generated = sum(s.generated for s in doc.samples)
-    _text(buf, lay.left, 32 * SCALE, f"{doc.name} — blend space", 22, _rgb("text"), bold=True)
+    _text(canvas, lay.left, 32 * SCALE, f"{doc.name} — blend space", 22, _rgb("text"), bold=True)
     summary = (
         f"{len(doc.samples) - generated} clips, {generated} generated · {counts['error']} errors, "
         f"{counts['warning']} warnings, {counts['info']} info · coverage {scene.coverage:.1f}% · "
         f"{len(doc.placeholders)} clips to add"
     )
-    _text(buf, lay.left, 56 * SCALE, summary, 13, _rgb("muted"))
+    _text(canvas, lay.left, 56 * SCALE, summary, 13, _rgb("muted"))
     x_axis, y_axis = scene.axes
     centre_x = lay.left + lay.plot_width / 2
     _text(
-        buf,
+        canvas,
         centre_x,
         lay.height - 18 * SCALE,
         f"{x_axis.feature} ({x_axis.unit})",
@@ -503,20 +614,23 @@ def _draw_titles(buf: oiio.ImageBuf, scene: Scene, doc: BlendSpaceDocument) -> N
         _rgb("text"),
         "center",
     )
-    _vertical_text(buf, 14 * SCALE, lay.top + lay.plot_height / 2, f"{y_axis.feature} ({y_axis.unit})", 14)
+    _vertical_text(canvas, 14 * SCALE, lay.top + lay.plot_height / 2, f"{y_axis.feature} ({y_axis.unit})", 14)
 
 
-def _vertical_text(buf: oiio.ImageBuf, x: float, centre_y: float, text: str, size: int) -> None:
-    """Text reading bottom to top: rendered flat on a patch, rotated, pasted."""
-    if _font() is None:
+def _vertical_text(canvas: Canvas, x: float, centre_y: float, text: str, size: int) -> None:
+    """Text reading bottom to top, its left edge at ``x``, centred on ``centre_y``."""
+    font = _font()
+    if font is None:
         return
-    extent = algo.text_size(text, size * SCALE, _font() or "")
-    width, height = extent.xend - extent.xbegin + 4, extent.yend - extent.ybegin + 4
-    patch = oiio.ImageBuf(oiio.ImageSpec(width, height, 3, "float"))
-    algo.fill(patch, _rgb("background"))
-    _text(patch, 2 - extent.xbegin, 2 - extent.ybegin, text, size, _rgb("text"))
-    turned = algo.rotate270(patch)
-    algo.paste(buf, round(x), round(centre_y - width / 2), 0, 0, turned)
+    alpha = np.rot90(_text_coverage(text, size * SCALE, font, "left")[0])  # counter-clockwise
+    rows, cols = np.nonzero(alpha > 0)
+    if not len(rows):
+        return
+    alpha = alpha[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    top, left = round(centre_y - alpha.shape[0] / 2), round(x)
+    region = canvas[top : top + alpha.shape[0], left : left + alpha.shape[1]]
+    cover = alpha[: region.shape[0], : region.shape[1], None]
+    region += cover * (np.asarray(_rgb("text"), dtype=np.float32) - region)
 
 
 LEGEND = [
@@ -532,36 +646,50 @@ LEGEND = [
 ]
 
 
-def _draw_legend(buf: oiio.ImageBuf, scene: Scene) -> None:
+def _legend_origin(scene: Scene) -> tuple[float, float]:
     lay = scene.layout
-    x = lay.left + lay.plot_width + 28 * SCALE
-    y = float(lay.top + 10 * SCALE)
-    _text(buf, x, y, "Legend", 15, _rgb("text"), bold=True)
-    for key, label in LEGEND:
+    return lay.left + lay.plot_width + 28 * SCALE, float(lay.top + 10 * SCALE)
+
+
+def _draw_legend(canvas: Canvas, scene: Scene) -> None:
+    """The legend's text (its swatches are drawn with the pen, `_draw_swatches`)."""
+    x, y = _legend_origin(scene)
+    _text(canvas, x, y, "Legend", 15, _rgb("text"), bold=True)
+    for _, label in LEGEND:
         y += 30 * SCALE
-        _swatch(buf, key, (x + 10 * SCALE, y - 5 * SCALE))
-        _text(buf, x + 28 * SCALE, y, label, 13, _rgb("text"))
+        _text(canvas, x + 28 * SCALE, y, label, 13, _rgb("text"))
 
 
-def _swatch(buf: oiio.ImageBuf, key: str, centre: Point) -> None:
+def _draw_swatches(pen: _Pen, scene: Scene) -> None:
+    x, y = _legend_origin(scene)
+    for key, _ in LEGEND:
+        y += 30 * SCALE
+        _swatch(pen, key, (x + 10 * SCALE, y - 5 * SCALE))
+
+
+def _swatch(pen: _Pen, key: str, centre: Point) -> None:
     colour = _rgb(key)
     r = 7 * SCALE
-    if key == "sample":
-        _disc(buf, centre, SAMPLE_RADIUS * SCALE, colour)
-    elif key == "generated":
-        _square(buf, centre, SAMPLE_RADIUS * SCALE, colour)
-    elif key in ("necessary", "suggested"):
-        _diamond(buf, centre, PLACEHOLDER_RADIUS * SCALE, colour)
+    shapes = {"sample": ("disc", SAMPLE_RADIUS), "generated": ("square", SAMPLE_RADIUS)}
+    shapes |= {"necessary": ("diamond", PLACEHOLDER_RADIUS), "suggested": ("diamond", PLACEHOLDER_RADIUS)}
+    if key in shapes:
+        shape, radius = shapes[key]
+        pen.markers(np.array([centre]), np.zeros(1, dtype=np.int64), [[(shape, radius * SCALE, colour)]])
     elif key == "crossing-axis":
-        _line(buf, (centre[0] - r, centre[1]), (centre[0] + r, centre[1]), colour, 4 * SCALE)
+        pen.line((centre[0] - r, centre[1]), (centre[0] + r, centre[1]), colour, 4 * SCALE)
     elif key in ("misalignment", "too-close"):
-        _circle(buf, centre, r, colour, 2 * SCALE)
+        pen.circle(centre, r, colour, 2 * SCALE)
     else:
-        x0, y0, x1, y1 = centre[0] - r, centre[1] - r, centre[0] + r, centre[1] + r
+        x0, y0, x1, y1 = (
+            round(centre[0] - r),
+            round(centre[1] - r),
+            round(centre[0] + r),
+            round(centre[1] + r),
+        )
         if key == "acute-triangle":
-            light = tuple(0.35 * c + 0.65 for c in colour)
-            algo.render_box(buf, round(x0), round(y0), round(x1), round(y1), light, fill=True)
+            pen.canvas[y0 : y1 + 1, x0 : x1 + 1] = tuple(0.35 * c + 0.65 for c in colour)
         else:  # the uncovered-area hatching
             for a, b in (((x0, y1), (x1, y0)), ((x0, y0 + r), (x0 + r, y0)), ((x0 + r, y1), (x1, y0 + r))):
-                _line(buf, a, b, colour, SCALE)
-        algo.render_box(buf, round(x0), round(y0), round(x1), round(y1), colour)
+                pen.line(a, b, colour, SCALE)
+        corners = np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], dtype=np.float64)
+        pen.lines(corners, np.roll(corners, -1, axis=0), colour)

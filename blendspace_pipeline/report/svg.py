@@ -11,10 +11,23 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from html import escape
 
-from blendspace_pipeline.report.diagram import PLACEHOLDER_RADIUS, SAMPLE_RADIUS, Point, Problem, Scene
+from blendspace_pipeline.report.diagram import (
+    PLACEHOLDER_RADIUS,
+    SAMPLE_RADIUS,
+    Marker,
+    Point,
+    Problem,
+    Scene,
+)
 
 LABEL_LIMIT = 60  # above this many samples, names are hidden until the user asks for them
 HEAT_EDGE_LIMIT = 300  # above this many samples the error map leaves out the triangle edges
+# Above this many samples (or placeholders, or findings) the diagram switches to its level of
+# detail for big sets: markers and problem areas drawn as a few merged paths instead of one
+# element each, names only where they fit, and the script finds what is under the pointer from
+# the embedded positions. The page's element count then no longer grows with the set.
+DOM_LIMIT = 400
+LOD_LABELS = 150  # at most this many names in the big-set diagram (the ones that fit, greedily)
 
 
 def _n(value: float) -> str:
@@ -167,13 +180,151 @@ def samples(scene: Scene) -> str:
 
 def diagram(scene: Scene) -> str:
     lay = scene.layout
-    under, over = problem_layers(scene)
     hidden = " hide-labels" if len(scene.samples) > LABEL_LIMIT else ""
+    if is_lod(scene):
+        under, over = lod_problem_layers(scene)
+        marks = lod_placeholders(scene) + lod_samples(scene)
+        hidden += " lod"
+    else:
+        under, over = problem_layers(scene)
+        marks = placeholders(scene) + samples(scene)
     return (
         f'<svg id="space" class="diagram{hidden}" viewBox="0 0 {lay.width} {lay.height}" '
         f'role="img" aria-label="blend-space diagram">'
-        f"{PATTERNS}{frame(scene)}{under}{edges_path(scene)}{over}{placeholders(scene)}{samples(scene)}</svg>"
+        f'{PATTERNS}{frame(scene)}{under}{edges_path(scene)}{over}{marks}<g id="selection-layer"></g></svg>'
     )
+
+
+# ---- level of detail for big sets ---------------------------------------------------------------
+
+
+def is_lod(scene: Scene) -> bool:
+    """Whether the diagram draws merged paths (see `DOM_LIMIT`)."""
+    return max(len(scene.samples), len(scene.placeholders), len(scene.problems)) > DOM_LIMIT
+
+
+def _dots(points: Iterable[Point]) -> str:
+    """Zero-length segments: with round (or square) caps each is a dot, all in one path."""
+    return "".join(f"M{_n(x)} {_n(y)}h0" for x, y in points)
+
+
+def _circle_path(x: float, y: float, r: float) -> str:
+    return f"M{_n(x - r)} {_n(y)}a{_n(r)} {_n(r)} 0 1 0 {_n(2 * r)} 0a{_n(r)} {_n(r)} 0 1 0 {_n(-2 * r)} 0Z"
+
+
+def lod_samples(scene: Scene) -> str:
+    """Measured clips as round dots, generated ones as square dots: two paths; the names that
+    fit without overlapping (at most `LOD_LABELS`)."""
+    measured = _dots((m.x, m.y) for m in scene.samples if not m.generated)
+    generated = _dots((m.x, m.y) for m in scene.samples if m.generated)
+    labels = "".join(
+        f'<text x="{_n(m.x + SAMPLE_RADIUS + 3)}" y="{_n(m.y - SAMPLE_RADIUS)}">{escape(m.name)}</text>'
+        for m in _fitting_labels(scene)
+    )
+    # Dots shrink with density (about 0.8 of the spacing of evenly spread samples, 3 to 12 px),
+    # so 10,000 clips still show the space between them.
+    lay = scene.layout
+    spacing = (lay.plot_width * lay.plot_height / max(len(scene.samples), 1)) ** 0.5
+    size = f' style="stroke-width:{_n(min(max(0.8 * spacing, 3.0), 2 * SAMPLE_RADIUS))}"'
+    return (
+        f'<g class="labels">{labels}</g><g class="samples lod-samples">'
+        f'<path class="sample-dots"{size} d="{measured}"/>'
+        f'<path class="sample-dots generated"{size} d="{generated}"/></g>'
+    )
+
+
+def _fitting_labels(scene: Scene) -> list[Marker]:
+    """Names placed greedily (in sample order) where their box overlaps no placed name's box,
+    checked on a coarse grid of occupied cells; at most `LOD_LABELS`."""
+    cell = 12.0
+    taken: set[tuple[int, int]] = set()
+    placed: list[Marker] = []
+    for m in scene.samples:
+        x0, y0 = m.x + SAMPLE_RADIUS + 3, m.y - SAMPLE_RADIUS - 11
+        width = 6.2 * len(m.name)
+        cells = {
+            (cx, cy)
+            for cx in range(int(x0 // cell), int((x0 + width) // cell) + 1)
+            for cy in range(int(y0 // cell), int((y0 + 13) // cell) + 1)
+        }
+        if cells & taken:
+            continue
+        taken |= cells
+        # The marker's own cells too: a later name must not cover this clip.
+        taken.add((int(m.x // cell), int(m.y // cell)))
+        placed.append(m)
+        if len(placed) >= LOD_LABELS:
+            break
+    return placed
+
+
+def lod_placeholders(scene: Scene) -> str:
+    r = PLACEHOLDER_RADIUS
+    out = ['<g class="placeholders">']
+    for priority in ("necessary", "suggested"):
+        d = "".join(
+            _path([(p.x, p.y - r), (p.x + r, p.y), (p.x, p.y + r), (p.x - r, p.y)])
+            for p in scene.placeholders
+            if p.priority == priority
+        )
+        out.append(f'<path class="placeholder {priority}" d="{d}"/>')
+    out.append("</g>")
+    return "".join(out)
+
+
+def _problem_d(problem: Problem, box: tuple[float, float, float, float]) -> str:
+    if problem.kind == "region":
+        left, top, right, bottom = box
+        return (
+            f"{_path([(left, top), (right, top), (right, bottom), (left, bottom)])} {_path(problem.points)}"
+        )
+    if problem.kind == "polygon":
+        return _path(problem.points)
+    if problem.kind == "circle":
+        return _circle_path(*problem.points[0], problem.radius)
+    if problem.kind == "edge":
+        d = _path(problem.points, closed=False)
+        if problem.cross is not None:
+            x, y = problem.cross
+            d += f"M{_n(x - 5)} {_n(y - 5)}L{_n(x + 5)} {_n(y + 5)}M{_n(x - 5)} {_n(y + 5)}L{_n(x + 5)} {_n(y - 5)}"
+        return d
+    radius = problem.radius if problem.kind == "rings" else 7.0
+    return "".join(_circle_path(x, y, radius) for x, y in problem.points)
+
+
+def lod_problem_layers(scene: Scene) -> tuple[str, str]:
+    """One path per (rule, severity, kind): a few elements for thousands of findings."""
+    box = _box(scene)
+    groups: dict[tuple[str, str, str], list[str]] = {}
+    for problem in scene.problems:
+        groups.setdefault((problem.rule, problem.severity, problem.kind), []).append(_problem_d(problem, box))
+    under: list[str] = []
+    over: list[str] = []
+    for (rule, severity, kind), parts in groups.items():
+        shape = "rings" if kind in ("rings", "point") else kind
+        element = (
+            f'<path class="problem rule-{escape(rule)} sev-{escape(severity)} {shape}" '
+            f'fill-rule="{"evenodd" if kind == "region" else "nonzero"}" d="{"".join(parts)}"/>'
+        )
+        (under if kind in ("region", "polygon", "circle") else over).append(element)
+    return f'<g class="problems">{"".join(under)}</g>', f'<g class="problems">{"".join(over)}</g>'
+
+
+def _r1(value: float) -> float:
+    return round(value, 1)
+
+
+def lod_data(scene: Scene) -> dict[str, object]:
+    """What the script needs to find and highlight things in the merged drawing: pixel
+    positions of samples and placeholders, and each finding's shape (kind, points, radius)."""
+    shapes: list[object] = [None] * (max((p.diagnostic for p in scene.problems), default=-1) + 1)
+    for p in scene.problems:
+        shapes[p.diagnostic] = [p.kind, [[_r1(x), _r1(y)] for x, y in p.points], _r1(p.radius)]
+    return {
+        "samples": [[_r1(m.x), _r1(m.y)] for m in scene.samples],
+        "placeholders": [[_r1(p.x), _r1(p.y)] for p in scene.placeholders],
+        "shapes": shapes,
+    }
 
 
 PATTERNS = (
@@ -238,11 +389,26 @@ def _view_overlay(view: HeatView) -> str:
     edges = view.edges if len(pts) <= HEAT_EDGE_LIMIT else []
     d = "".join(f"M{_n(pts[a][0])} {_n(pts[a][1])}L{_n(pts[b][0])} {_n(pts[b][1])}" for a, b in edges)
     dots = "".join(f"M{_n(x)} {_n(y)}h0" for x, y in pts)  # round caps of zero-length lines: one path
-    arrows = "".join(
-        f'<line x1="{_n(a[0])}" y1="{_n(a[1])}" x2="{_n(b[0])}" y2="{_n(b[1])}" '
-        'marker-end="url(#arrow-head)"/>'
-        for a, b in view.arrows
-        if abs(a[0] - b[0]) + abs(a[1] - b[1]) > 1.0
-    )
+    moved = [(a, b) for a, b in view.arrows if abs(a[0] - b[0]) + abs(a[1] - b[1]) > 1.0]
+    if len(moved) > DOM_LIMIT:  # one path of shafts and drawn heads instead of an element each
+        arrows = f'<path class="drift-path" d="{"".join(_arrow_d(a, b) for a, b in moved)}"/>'
+    else:
+        arrows = "".join(
+            f'<line x1="{_n(a[0])}" y1="{_n(a[1])}" x2="{_n(b[0])}" y2="{_n(b[1])}" '
+            'marker-end="url(#arrow-head)"/>'
+            for a, b in moved
+        )
     samples = f'<path class="heat-samples" d="{dots}"/>'
     return f'<path class="heat-edges" d="{d}"/>{samples}<g class="drift">{arrows}</g>'
+
+
+def _arrow_d(a: Point, b: Point) -> str:
+    """A shaft from ``a`` to ``b`` and a closed head at ``b`` (6 px long), as path data."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    length = max((dx * dx + dy * dy) ** 0.5, 1e-9)
+    ux, uy = dx / length, dy / length
+    bx, by = b[0] - 6 * ux, b[1] - 6 * uy
+    return (
+        f"M{_n(a[0])} {_n(a[1])}L{_n(b[0])} {_n(b[1])}"
+        f"M{_n(b[0])} {_n(b[1])}L{_n(bx - 3 * uy)} {_n(by + 3 * ux)}L{_n(bx + 3 * uy)} {_n(by - 3 * ux)}Z"
+    )

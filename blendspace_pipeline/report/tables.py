@@ -41,9 +41,13 @@ def _clip_list(names: list[str]) -> str:
     return " ".join(f'<span class="clip-ref">{e(n)}</span>' for n in names) or "–"
 
 
-def diagnostics_table(doc: BlendSpaceDocument) -> str:
+PAGE_SIZE = 50  # rows per page of a long table: the browser holds only one page in the DOM
+
+
+def diagnostic_rows(doc: BlendSpaceDocument, limit: int | None = None) -> list[str]:
+    """Rows of the diagnostics table (the first ``limit``); `report.js` `diagnosticRow` mirrors it."""
     rows = []
-    for i, d in enumerate(doc.diagnostics):
+    for i, d in enumerate(doc.diagnostics[:limit]):
         where = ""
         if d.location is not None:
             where = f"{d.location.path}:{d.location.line}" if d.location.line else d.location.path
@@ -54,12 +58,29 @@ def diagnostics_table(doc: BlendSpaceDocument) -> str:
             f"<td>{e(d.message)}{_fix_note(d.fix)}</td><td>{e(d.hint or '')}"
             f"{f'<br><small>{e(where)}</small>' if where else ''}</td></tr>"
         )
-    if not rows:
+    return rows
+
+
+def diagnostics_table(doc: BlendSpaceDocument, rows: list[str]) -> str:
+    """The table with its first page, ``rows``; the script pages through the rest."""
+    if not doc.diagnostics:
         return '<p class="empty">No diagnostics: every rule passed.</p>'
     return (
-        '<table id="diagnostics-table"><thead><tr><th>severity</th><th>rule</th><th>clips</th>'
+        pager("diagnostics-table", len(doc.diagnostics), "find a clip, rule or message")
+        + '<table id="diagnostics-table"><thead><tr><th>severity</th><th>rule</th><th>clips</th>'
         "<th>message</th>"
-        f"<th>hint</th></tr></thead><tbody>{''.join(rows)}</tbody></table>"
+        f"<th>hint</th></tr></thead><tbody>{''.join(rows[:PAGE_SIZE])}</tbody></table>"
+    )
+
+
+def pager(table: str, total: int, placeholder: str) -> str:
+    """Filter box and page buttons of a long table (wired by the report's script)."""
+    shown = min(total, PAGE_SIZE)
+    return (
+        f'<div class="pager" data-for="{table}"><input type="search" placeholder="{e(placeholder)}" '
+        f'aria-label="filter the rows"><button type="button" data-step="-1" disabled>‹ previous</button>'
+        f'<span class="page-info">{"1–" + str(shown) if shown else "0"} of {total}</span>'
+        f'<button type="button" data-step="1"{" disabled" if total <= PAGE_SIZE else ""}>next ›</button></div>'
     )
 
 
@@ -83,19 +104,24 @@ def diagnostic_filters(doc: BlendSpaceDocument) -> str:
     )
 
 
-def placeholders_table(doc: BlendSpaceDocument) -> str:
-    if not doc.placeholders:
-        return '<p class="empty">No clips to add.</p>'
+def placeholder_rows(doc: BlendSpaceDocument, limit: int | None = None) -> list[str]:
+    """Rows of the placeholders table; `report.js` `placeholderRow` mirrors it."""
     x, y = doc.axes
-    rows = "".join(
+    return [
         f'<tr data-placeholder-row="{i}"><td><span class="prio {p.priority}">{p.priority}</span></td>'
         f"<td>{num(p.position[0])} {e(x.unit)}, {num(p.position[1])} {e(y.unit)}</td>"
         f"<td>{_features_text(p.features)}</td><td><code>{e(p.rule)}</code></td><td>{e(p.reason)}</td></tr>"
-        for i, p in enumerate(doc.placeholders)
-    )
+        for i, p in enumerate(doc.placeholders[:limit])
+    ]
+
+
+def placeholders_table(doc: BlendSpaceDocument, rows: list[str]) -> str:
+    if not doc.placeholders:
+        return '<p class="empty">No clips to add.</p>'
     return (
-        '<table id="placeholders-table"><thead><tr><th>priority</th><th>position</th><th>clip to author</th>'
-        f"<th>rule</th><th>why</th></tr></thead><tbody>{rows}</tbody></table>"
+        pager("placeholders-table", len(doc.placeholders), "find a rule or reason")
+        + '<table id="placeholders-table"><thead><tr><th>priority</th><th>position</th><th>clip to author</th>'
+        f"<th>rule</th><th>why</th></tr></thead><tbody>{''.join(rows[:PAGE_SIZE])}</tbody></table>"
     )
 
 
@@ -110,15 +136,21 @@ def feature_columns(doc: BlendSpaceDocument) -> list[str]:
     return [f for f in ordered if f in names] + sorted(names - set(ordered))
 
 
-def clips_table(doc: BlendSpaceDocument) -> str:
+def clip_rows(doc: BlendSpaceDocument, limit: int | None = None) -> list[str]:
+    """Rows of the clips table; `report.js` `clipRow` mirrors it."""
+    features = feature_columns(doc)
+    return [_clip_row(i, s, features) for i, s in enumerate(doc.samples[:limit])]
+
+
+def clips_table(doc: BlendSpaceDocument, rows: list[str]) -> str:
     features = feature_columns(doc)
     heads = "".join(f"<th>{e(f)}<br><small>{e(UNITS.get(f, ''))}</small></th>" for f in features)
-    rows = "".join(_clip_row(i, s, features) for i, s in enumerate(doc.samples))
     return (
-        '<div class="scroll"><table id="clips-table"><thead><tr><th>clip</th><th>position</th>'
+        pager("clips-table", len(doc.samples), "find a clip by name or file")
+        + '<div class="scroll"><table id="clips-table"><thead><tr><th>clip</th><th>position</th>'
         f"<th>snapping error</th><th>by hand</th>{heads}<th>fps</th><th>frames</th><th>units</th>"
         f"<th>skeleton</th><th>foot contacts<br><small>L / R over the clip</small></th><th>notes</th>"
-        f"</tr></thead><tbody>{rows}</tbody></table></div>"
+        f"</tr></thead><tbody>{''.join(rows[:PAGE_SIZE])}</tbody></table></div>"
     )
 
 
