@@ -118,8 +118,7 @@ def measure_files(
         raise InputError(
             f"reading the library store {store!r} needs fsspec, which is not installed",
             path=loaded.path,
-            hint="pip install 'blendspace-pipeline[library]', or drop --library / "
-            f"{cache.LIBRARY_VARIABLE}",
+            hint=f"pip install 'blendspace-pipeline[library]', or drop --library / {cache.LIBRARY_VARIABLE}",
         )
     settings_of: dict[int, RigSettings] = {}  # one per manifest entry, not per file
     job_list: list[Job] = []
