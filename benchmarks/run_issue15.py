@@ -24,13 +24,13 @@ HERE = Path(__file__).resolve().parent
 ROWS: dict[str, tuple[str, list[str], list[str]]] = {
     "read": (
         "BVH read + FK vs bvhio; BVH parse throughput per core",
-        ["bench_bvh_read.py", "--frames", "840", "7200", "--small", "0"],
+        ["bench_bvh_read.py", "--frames", "840", "7200", "--small", "0", "--repeat", "3"],
         ["bench_bvh_read.py", "--frames", "840", "--small", "0", "--repeat", "1"],
     ),
     "measure": (
         "measure one 60 s / 300 s clip vs its read time",
-        ["bench_measure.py", "--seconds", "7", "60", "300"],
-        ["bench_measure.py", "--seconds", "7", "60"],
+        ["bench_measure.py", "--seconds", "60", "300"],
+        ["bench_measure.py", "--seconds", "60", "--library-clips", "10"],
     ),
     "cold": (
         "1,000 clips cold, --jobs 1 / --jobs 2",
@@ -44,7 +44,7 @@ ROWS: dict[str, tuple[str, list[str], list[str]]] = {
     ),
     "scale": (
         "10,000 samples, stages after measurement",
-        ["bench_scale.py", "--samples", "10000"],
+        ["bench_scale.py", "--samples", "10000", "--browser"],
         ["bench_scale.py", "--samples", "2000"],
     ),
     "eval": (
