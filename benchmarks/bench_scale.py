@@ -55,6 +55,9 @@ def write_project(folder: Path, count: int, seed: int = 3) -> Path:
     for index in range(count):
         path = clips / f"take_{index:05d}.bvh"
         path.write_text(f"stand-in {index}\n", encoding="utf-8")
+        # A library's files were written long before a build reads them: as settled files their
+        # digests are remembered (a file written in the last seconds is hashed on every run).
+        os.utime(path, (time.time() - 60, time.time() - 60))
         turn, speed = float(rng.uniform(-175, 175)), float(rng.uniform(-2.8, 5.8))
         features = {
             "speed": speed,
@@ -89,7 +92,9 @@ def run_stages(manifest: Path, out: Path) -> dict[str, float]:
     seconds: dict[str, float] = {}
     loaded = load_manifest(manifest)
     t, clips = timed(lambda: measure_files(loaded, resolve_clip_files(loaded)))
-    seconds["manifest + cached measurements"] = t
+    seconds["cached measurements, first run"] = t
+    t, clips = timed(lambda: measure_files(loaded, resolve_clip_files(loaded)))
+    seconds["cached measurements, from the pack"] = t
     t, space = timed(lambda: assemble(loaded, clips))
     seconds["placement + triangulation"] = t
     t, _ = timed(lambda: run_rules(space))

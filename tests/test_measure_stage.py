@@ -3,9 +3,10 @@ and worker processes. Each must give exactly what measuring the files here gives
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,8 @@ import pytest
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.manifest import load_manifest
 from blendspace_pipeline.manifest.paths import resolve_clip_files
-from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.detect import DetectionGuess, RigSettings
+from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.pipeline import cache, measure_stage
 from blendspace_pipeline.pipeline.measure_stage import measure_files
@@ -159,3 +161,23 @@ def test_build_and_check_take_the_library_option(
     assert counter.calls == 0
     assert cache.LIBRARY_VARIABLE not in os.environ  # restored after the command
     capsys.readouterr()
+
+
+def test_stored_measurements_serialise_like_asdict() -> None:
+    """The cache's shallow serialisation writes what `dataclasses.asdict` would, nested guesses,
+    contacts and ranges included, and reads back equal."""
+
+    clip = generate(GaitSpec("walk", speed=1.4, duration=1.0))
+
+    m = measure(clip, RigSettings(), None)
+    m = replace(
+        m,
+        guesses=[DetectionGuess("up axis", "y", "one frame only", "skeleton: {up: y}")],
+        range_used=(0.1, 0.9),
+        notes=["a note"],
+    )
+    assert m.contacts  # the nested lists are there to compare
+    stored = cache.to_json([("walk", m)])
+    assert json.dumps(stored) == json.dumps([{"name": "walk", "measurement": asdict(m)}])
+    back = cache.from_json(json.loads(json.dumps(stored)))
+    assert back == [("walk", m)]
