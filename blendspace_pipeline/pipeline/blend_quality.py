@@ -42,8 +42,8 @@ from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import trim
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
+from blendspace_pipeline.pipeline.cache import write_atomic
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
-from blendspace_pipeline.pipeline.stamp import write_atomic
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
 from blendspace_pipeline.space.model import BlendSpace, Sample

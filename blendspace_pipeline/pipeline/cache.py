@@ -67,14 +67,24 @@ def settled(info: os.stat_result) -> bool:
     return time.time_ns() - info.st_mtime_ns > 2_000_000_000
 
 
+# Digests this process has computed or read, by stat key: the build's stamp asks for the digests
+# the measure stage (or its workers, through the pack) already knows.
+_KNOWN_DIGESTS: dict[str, str] = {}
+# Smaller files are hashed again rather than remembered on disk: creating a memo file costs more
+# (about a millisecond on common file systems) than hashing a few megabytes.
+MEMO_MIN_BYTES = 4 << 20
+
+
 def content_digest(path: Path) -> str:
     """SHA-256 of the file's bytes, remembered by (path, size, mtime, inode): a file whose stat did
     not move is not read again, so a rebuild after one edit hashes one clip, not the library."""
     info = path.stat()
-    folder = cache_dir()
     stat_key_ = stat_key(path, info)
+    if stat_key_ in _KNOWN_DIGESTS:
+        return _KNOWN_DIGESTS[stat_key_]
+    folder = cache_dir()
     entry = None
-    if folder is not None:
+    if folder is not None and info.st_size >= MEMO_MIN_BYTES:
         entry = folder / "digests" / f"{hashlib.sha256(stat_key_.encode()).hexdigest()}.txt"
         try:
             return entry.read_text(encoding="ascii").strip()
@@ -85,12 +95,21 @@ def content_digest(path: Path) -> str:
         for block in iter(lambda: stream.read(1 << 20), b""):
             digest.update(block)
     value = digest.hexdigest()
-    if entry is not None and settled(info):
-        _write_atomic(entry, value)
+    if settled(info):
+        remember_digest(stat_key_, value)
+        if entry is not None:
+            write_atomic(entry, value)
     return value
 
 
-def _write_atomic(target: Path, text: str) -> None:
+def remember_digest(key: str, digest: str) -> None:
+    """Note a settled file's digest for the rest of this process (see `_KNOWN_DIGESTS`)."""
+    _KNOWN_DIGESTS[key] = digest
+
+
+def write_atomic(target: Path, text: str) -> None:
+    """Write a cache folder's file in one rename; a folder that refuses (read-only, full) is
+    ignored: a cache must never fail a build."""
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".tmp")
@@ -98,7 +117,7 @@ def _write_atomic(target: Path, text: str) -> None:
             stream.write(text)
         os.replace(temporary, target)
     except OSError:
-        pass  # a read-only or full cache folder must never fail a build
+        pass
 
 
 def load(key: str) -> list[tuple[str, Measurement]] | None:
@@ -137,17 +156,8 @@ def _plain(value: Any) -> Any:
 
 def store(key: str, measured: list[tuple[str, Measurement]]) -> None:
     folder = cache_dir()
-    if folder is None:
-        return
-    payload = json.dumps(to_json(measured))
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=folder, suffix=".tmp")
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(payload)
-        os.replace(temporary, folder / f"{key}.json")
-    except OSError:
-        pass  # a read-only or full cache folder must never fail a build
+    if folder is not None:
+        write_atomic(folder / f"{key}.json", json.dumps(to_json(measured)))
 
 
 class Pack:
@@ -188,6 +198,7 @@ class Pack:
     ) -> None:
         if settled(info):
             self.used_digests[stat_key(path, info)] = digest
+            remember_digest(stat_key(path, info), digest)
         self.used_entries[key] = self.entries[key] if key in self.entries else to_json(measured)
 
     def save(self) -> None:
@@ -196,4 +207,4 @@ class Pack:
             self.used_digests == self.digests and self.used_entries.keys() == self.entries.keys()
         ):
             return
-        _write_atomic(self.path, json.dumps({"digests": self.used_digests, "entries": self.used_entries}))
+        write_atomic(self.path, json.dumps({"digests": self.used_digests, "entries": self.used_entries}))

@@ -57,11 +57,10 @@ from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
-from blendspace_pipeline.pipeline.cache import cache_dir
+from blendspace_pipeline.pipeline.cache import cache_dir, write_atomic
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
-from blendspace_pipeline.pipeline.stamp import write_atomic
 from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.report.atomic import verify_written
 from blendspace_pipeline.space.document import BlendSpaceDocument

@@ -25,14 +25,13 @@ import json
 import os
 import stat
 import sys
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, cache_dir, content_digest
+from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, cache_dir, content_digest, write_atomic
 
 STAMP_VERSION = 1
 
@@ -150,19 +149,6 @@ def record(key: str, inputs: Iterable[Path], outputs: Iterable[Path], printed: s
         "exit_code": exit_code,
     }
     write_atomic(path, json.dumps(stamp))
-
-
-def write_atomic(target: Path, text: str) -> None:
-    """Write a cache folder's file in one rename; a folder that refuses (read-only, full) is
-    ignored: a cache must never fail a build."""
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=target.parent, suffix=".tmp")
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temporary, target)
-    except OSError:
-        pass
 
 
 def _previous_states(path: Path) -> dict[str, FileState]:
