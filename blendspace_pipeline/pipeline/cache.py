@@ -90,16 +90,21 @@ def content_digest(path: Path) -> str:
             return entry.read_text(encoding="ascii").strip()
         except OSError:
             pass
-    digest = hashlib.sha256()
-    with path.open("rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    value = digest.hexdigest()
+    value = file_sha256(path)
     if settled(info):
         remember_digest(stat_key_, value)
         if entry is not None:
             write_atomic(entry, value)
     return value
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes, read in 1 MiB blocks (no memo: see `content_digest`)."""
+    digest = hashlib.sha256()
+    with path.open("rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def remember_digest(key: str, digest: str) -> None:

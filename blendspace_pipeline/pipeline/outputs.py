@@ -57,7 +57,7 @@ from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
-from blendspace_pipeline.pipeline.cache import cache_dir, write_atomic
+from blendspace_pipeline.pipeline.cache import cache_dir, file_sha256, write_atomic
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
@@ -219,19 +219,11 @@ def _write_record(
             ):
                 digest = str(known.get("sha256"))
             else:
-                digest = _file_digest(target)
+                digest = file_sha256(target)
         except OSError:
             continue  # not recorded: written again next time
         files[name] = {"inputs": inputs, "size": info.st_size, "mtime_ns": info.st_mtime_ns, "sha256": digest}
     write_atomic(path, json.dumps({"generation": generation, "files": files}, sort_keys=True))
-
-
-def _file_digest(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _reuse(previous: Path, known: dict[str, object], target: Path) -> bool:
@@ -242,7 +234,7 @@ def _reuse(previous: Path, known: dict[str, object], target: Path) -> bool:
         info = previous.stat()
         if info.st_size != known.get("size"):
             return False
-        if info.st_mtime_ns != known.get("mtime_ns") and _file_digest(previous) != known.get("sha256"):
+        if info.st_mtime_ns != known.get("mtime_ns") and file_sha256(previous) != known.get("sha256"):
             return False
         try:
             os.link(previous, target)

@@ -31,7 +31,13 @@ from pathlib import Path
 from typing import Any
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, cache_dir, content_digest, write_atomic
+from blendspace_pipeline.pipeline.cache import (
+    MEASUREMENT_REVISION,
+    cache_dir,
+    content_digest,
+    file_sha256,
+    write_atomic,
+)
 
 STAMP_VERSION = 1
 
@@ -73,14 +79,6 @@ def _stamp_path(key: str) -> Path | None:
     return None if folder is None else folder / "stamps" / f"{key}.json"
 
 
-def _digest(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as stream:
-        for block in iter(lambda: stream.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def file_state(path: Path, known: dict[str, FileState] | None = None) -> FileState:
     """Size, mtime and SHA-256 of ``path``. The digest is reused, not read again, from ``known``
     (the previous stamp) or the measurement cache's digests when the file's stat did not move:
@@ -111,7 +109,7 @@ def _unchanged(state: FileState) -> bool:
     if info.st_mtime_ns == state.mtime_ns:
         return True
     try:
-        return _digest(path) == state.sha256
+        return file_sha256(path) == state.sha256
     except OSError:
         return False
 
