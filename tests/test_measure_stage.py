@@ -181,3 +181,44 @@ def test_stored_measurements_serialise_like_asdict() -> None:
     assert json.dumps(stored) == json.dumps([{"name": "walk", "measurement": asdict(m)}])
     back = cache.from_json(json.loads(json.dumps(stored)))
     assert back == [("walk", m)]
+
+
+def test_a_style_layer_keeps_its_own_pack(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The manifest's clips and a style layer's clips are measured in two calls: one shared pack
+    would be rewritten twice per run and hold only the last list."""
+    from blendspace_pipeline.pipeline.analysis import analyse
+
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "p")
+    styles = tmp_path / "p" / "styles"
+    styles.mkdir()
+    for spec in (
+        GaitSpec("limp_walk", speed=1.0, duration=1.0),
+        GaitSpec("limp_run", speed=3.0, duration=1.0),
+    ):
+        write_bvh_clip(generate(spec), styles / f"{spec.name}.bvh")
+        os.utime(styles / f"{spec.name}.bvh", ns=(1_700_000_000_000_000_000,) * 2)
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8")
+        + "layers:\n  - name: limp\n    kind: style\n    clips: [styles/*.bvh]\n",
+        encoding="utf-8",
+    )
+    analyse(manifest)
+    packs = {p: p.stat().st_mtime_ns for p in (tmp_path / "cache" / "packs").glob("*.json")}
+    assert len(packs) == 2
+    counter = Counter(monkeypatch)
+    analyse(manifest)
+    assert counter.calls == 0
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cache" / "packs").glob("*.json")} == packs
+
+
+def test_a_store_that_cannot_be_opened_is_bad_input(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("fsspec")
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "p")
+    assert main(["check", str(manifest), "--library", "nosuchprotocol://bucket/store"]) == 2
+    err = capsys.readouterr().err
+    assert "library store 'nosuchprotocol://bucket/store' cannot be opened" in err
+    assert "Traceback" not in err

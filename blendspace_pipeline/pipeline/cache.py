@@ -176,9 +176,11 @@ class Pack:
     never grows past one manifest's clips.
     """
 
-    def __init__(self, owner: Path) -> None:
+    def __init__(self, owner: Path, part: str = "clips") -> None:
         folder = cache_dir()
-        name = hashlib.sha256(f"{Path(owner).absolute()}|{__version__}|{MEASUREMENT_REVISION}".encode())
+        name = hashlib.sha256(
+            f"{Path(owner).absolute()}|{part}|{__version__}|{MEASUREMENT_REVISION}".encode()
+        )
         self.path = None if folder is None else folder / "packs" / f"{name.hexdigest()}.json"
         self.digests: dict[str, str] = {}
         self.entries: dict[str, Any] = {}

@@ -51,7 +51,7 @@ def _style(
 ) -> StyleSpace:
     entries = [ClipEntry(path=item) if isinstance(item, str) else item for item in layer.clips]
     files = resolve_clip_files(space.manifest, entries=entries, key=("layers", index, "clips"))
-    clips = measure_files(space.manifest, files, jobs=jobs, progress=progress)
+    clips = measure_files(space.manifest, files, jobs=jobs, progress=progress, part=f"layer {layer.name}")
     axis = style_axis(space.axes)
     positions = [axis.snap(clip.measurement.features[axis.feature]) for clip in clips]
     return StyleSpace(layer.name, index, axis, clips, positions, layer.mask)

@@ -111,22 +111,21 @@ def measure_files(
     jobs: int = 1,
     progress: Progress | None = None,
     library: str | None = None,
+    part: str = "clips",
 ) -> list[MeasuredClip]:
+    """The measured clips of ``files``. ``part`` names which of the manifest's clip lists they
+    are (its `clips:` or a style layer's): each keeps its own pack, so they do not evict each other."""
     top = loaded.model.skeleton
     store = library_store(library)
-    if store and importlib.util.find_spec("fsspec") is None:
-        raise InputError(
-            f"reading the library store {store!r} needs fsspec, which is not installed",
-            path=loaded.path,
-            hint=f"pip install 'blendspace-pipeline[library]', or drop --library / {cache.LIBRARY_VARIABLE}",
-        )
+    if store:
+        _check_store(loaded, store)
     settings_of: dict[int, RigSettings] = {}  # one per manifest entry, not per file
     job_list: list[Job] = []
     for f in files:
         if id(f.entry) not in settings_of:
             settings_of[id(f.entry)] = rig_settings(entry_settings(top, f.entry))
         job_list.append(Job(f.path, settings_of[id(f.entry)], _range(f.entry), loaded.directory, store))
-    results = _measure_all(job_list, cache.Pack(loaded.path), jobs, progress)
+    results = _measure_all(job_list, cache.Pack(loaded.path, part), jobs, progress)
     results = _one_answer_per_skeleton(job_list, results)
     clips: list[MeasuredClip] = []
     for resolved, result in zip(files, results, strict=True):
@@ -135,6 +134,29 @@ def measure_files(
         clips += _named(resolved, result)
     _reject_duplicate_names(loaded, clips)
     return clips
+
+
+def _check_store(loaded: LoadedManifest, store: str) -> None:
+    """A store the build cannot open is bad input (exit 2), said once, not a crash per clip."""
+    if importlib.util.find_spec("fsspec") is None:
+        problem = "needs fsspec, which is not installed"
+        hint = "pip install 'blendspace-pipeline[library]'"
+    else:
+        import fsspec
+
+        try:
+            fsspec.core.url_to_fs(store)
+            return
+        except (ImportError, ValueError, OSError) as error:  # an unknown protocol, a missing driver
+            problem = f"cannot be opened: {error}"
+            hint = (
+                "give a folder or a URL whose fsspec package is installed (s3fs for s3://, gcsfs for gs://)"
+            )
+    raise InputError(
+        f"the library store {store!r} {problem}",
+        path=loaded.path,
+        hint=f"{hint}, or drop --library / {cache.LIBRARY_VARIABLE}",
+    )
 
 
 def _measure_all(job_list: list[Job], pack: cache.Pack, jobs: int, progress: Progress | None) -> list[Result]:
