@@ -262,3 +262,38 @@ def test_rule_runs_share_sample_views_of_the_same_clips_only(
     fresh = analysis.analyse(manifest)
     assert shared.diagnostics == fresh.diagnostics
     assert shared.placeholders == fresh.placeholders
+
+
+def test_foot_skate_played_in_worker_processes_equals_one_process(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`build --jobs 2` plays a cold foot-skate map's blends in forked workers: same document."""
+    if "fork" not in __import__("multiprocessing").get_all_start_methods():
+        pytest.skip("workers are forked; this platform plays every blend in process")
+    manifest = _project(tmp_path / "project")
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
+    calls: list[int] = []
+    real = blend_quality._play_all
+
+    def recorded(prepared, settings, points, jobs):  # type: ignore[no-untyped-def]
+        calls.append(len(points))
+        return real(prepared, settings, points, jobs)
+
+    monkeypatch.setattr(blend_quality, "_play_all", recorded)
+    pools: list[int] = []
+    pool = blend_quality.ProcessPoolExecutor
+
+    def counted_pool(*args, **kwargs):  # type: ignore[no-untyped-def]
+        pools.append(1)
+        return pool(*args, **kwargs)
+
+    monkeypatch.setattr(blend_quality, "ProcessPoolExecutor", counted_pool)
+    for jobs in ("1", "2"):
+        out = tmp_path / "project" / f"jobs{jobs}"
+        assert main(["build", str(manifest), "--out", str(out), "--no-fix", "--jobs", jobs]) in (0, 1)
+    assert calls and calls[0] >= 2  # there were blends to play, enough to fork for
+    assert pools == [1]  # --jobs 1 played in process, --jobs 2 in a pool
+    assert _skate(tmp_path / "project" / "jobs1") == _skate(tmp_path / "project" / "jobs2")
+    skate = [v for row in _skate(tmp_path / "project" / "jobs2")["foot_skate"] for v in row]  # type: ignore[index]
+    assert any(v is not None for v in skate)

@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import multiprocessing
 import os
 from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -201,14 +203,25 @@ def _store(key: str | None, value: float | None) -> None:
         write_atomic(entry, json.dumps({"foot_sliding": None if value is None else float(value)}))
 
 
+# A grid point to play: row, column, its samples, their weights and rates, and its cache key.
+Point = tuple[int, int, list[int], list[float], list[float], str | None]
+
+# What forked workers play from: set just before the pool forks, so the prepared clips and the
+# space are inherited by the workers' memory instead of being pickled to them.
+_FORKED: tuple[PreparedSamples, RigSettings] | None = None
+# Below this many blends to play, starting worker processes costs more than it saves.
+PARALLEL_MIN_POINTS = 8
+
+
 def foot_skate_grid(
-    space: BlendSpace, doc: BlendSpaceDocument, grid: RuntimeGrid, prepared: PreparedSamples
+    space: BlendSpace, doc: BlendSpaceDocument, grid: RuntimeGrid, prepared: PreparedSamples, jobs: int = 1
 ) -> FloatArray:
     settings = rig_settings(space.manifest.model.skeleton)
     base = _base_key(space, settings.cache_key(), grid.sync) if cache.cache_dir() is not None else ""
     ny, nx = grid.distance.shape
     skate = np.full((ny, nx), np.nan)
     computed = np.zeros((ny, nx), dtype=bool)
+    to_play: list[Point] = []
     for row in range(0, ny, SKATE_STEP):
         for col in range(0, nx, SKATE_STEP):
             pairs = grid.weights[row * nx + col]
@@ -225,11 +238,15 @@ def foot_skate_grid(
             key = _point_key(base, [prepared.key(i) for i, _ in pairs], weights, rates) if base else None
             found, value = _load(key)
             if not found:
-                value = _play_point(prepared, [i for i, _ in pairs], weights, rates, settings)
-                _store(key, value)
-            if value is not None:
+                to_play.append((row, col, [i for i, _ in pairs], weights, rates, key))
+            elif value is not None:
                 skate[row, col] = value
                 computed[row, col] = True
+    for (row, col, *_, key), value in zip(to_play, _play_all(prepared, settings, to_play, jobs), strict=True):
+        _store(key, value)
+        if value is not None:
+            skate[row, col] = value
+            computed[row, col] = True
     if computed.any():
         from scipy.ndimage import distance_transform_edt
 
@@ -239,6 +256,38 @@ def foot_skate_grid(
     return skate
 
 
+def _play_all(
+    prepared: PreparedSamples, settings: RigSettings, points: list[Point], jobs: int
+) -> list[float | None]:
+    """Every point's foot skate, in ``jobs`` forked processes when there are enough points (a cold
+    build: each point reads and prepares the clips of its triangle). Points of one triangle go to
+    one worker, so a clip is read about once; the values are the same as played here."""
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    if jobs < 2 or len(points) < PARALLEL_MIN_POINTS or not fork:
+        return [_play_point(prepared, p[2], p[3], p[4], settings) for p in points]
+    order = sorted(range(len(points)), key=lambda i: sorted(points[i][2]))
+    size = -(-len(order) // jobs)
+    chunks = [[points[i][2:5] for i in order[start : start + size]] for start in range(0, len(order), size)]
+    global _FORKED
+    _FORKED = (prepared, settings)
+    try:
+        with ProcessPoolExecutor(len(chunks), mp_context=multiprocessing.get_context("fork")) as pool:
+            played = [value for chunk in pool.map(_play_chunk, chunks) for value in chunk]
+    finally:
+        _FORKED = None
+    values: list[float | None] = [None] * len(points)
+    for index, value in zip(order, played, strict=True):
+        values[index] = value
+    return values
+
+
+def _play_chunk(chunk: list[tuple[list[int], list[float], list[float]]]) -> list[float | None]:
+    """Worker: play the chunk's blends with the prepared clips inherited from the parent."""
+    assert _FORKED is not None, "runs only in a worker forked by _play_all"
+    prepared, settings = _FORKED
+    return [_play_point(prepared, indices, weights, rates, settings) for indices, weights, rates in chunk]
+
+
 def blend_quality(
     space: BlendSpace,
     doc: BlendSpaceDocument,
@@ -246,10 +295,13 @@ def blend_quality(
     *,
     sync: SyncMode = DEFAULT_SYNC,
     resolution: int = DEFAULT_GRID,
+    jobs: int = 1,
 ) -> BlendQualityDoc:
     grid = runtime_grid(doc, sync, resolution)
     has_feet = any(s.clip.measurement.contacts is not None for s in space.samples)
-    skate = foot_skate_grid(space, doc, grid, PreparedSamples(space, generated or {})) if has_feet else None
+    skate = (
+        foot_skate_grid(space, doc, grid, PreparedSamples(space, generated or {}), jobs) if has_feet else None
+    )
     if skate is not None and not np.isfinite(skate).any():
         skate = None  # no blend could be played (clips unreadable or without feet)
     summary = {

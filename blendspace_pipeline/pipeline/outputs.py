@@ -252,12 +252,14 @@ def write_outputs(
     formats: Sequence[str],
     fixes: FixState | None = None,
     layer_fixes: dict[str, FixState] | None = None,
+    jobs: int = 1,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
-    disk full) is bad input, exit 2, and leaves nothing behind."""
+    disk full) is bad input, exit 2, and leaves nothing behind. ``jobs``: processes for the
+    foot-skate map's blends."""
     try:
         with _usd_errors_as_os_errors():
-            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {})
+            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {}, jobs)
     except OSError as error:
         where = error.filename or out_dir
         raise InputError(
@@ -292,6 +294,7 @@ def _write_outputs(
     formats: Sequence[str],
     fixes: FixState,
     layer_fixes: dict[str, FixState],
+    jobs: int = 1,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -313,6 +316,7 @@ def _write_outputs(
         document,
         {n: g.clip for n, g in fixes.generated.items()},
         sync=space.manifest.model.blend.sync,
+        jobs=jobs,
     )
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
@@ -536,7 +540,7 @@ def build(
                 layer.space, layer_fixes[layer.name] = apply_fixes(layer.space)
     out_dir = output_dir(space, out)
     formats = list(dict.fromkeys(space.manifest.model.output.formats))
-    document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes)
+    document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes, jobs)
     return BuildResult(space, document, out_dir, written, fixes, layer_fixes)
 
 
