@@ -107,6 +107,11 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
+def forget_digests() -> None:
+    """Drop the digests this process knows (benchmarks time runs as if each were the first)."""
+    _KNOWN_DIGESTS.clear()
+
+
 def remember_digest(key: str, digest: str) -> None:
     """Note a settled file's digest for the rest of this process (see `_KNOWN_DIGESTS`)."""
     _KNOWN_DIGESTS[key] = digest
