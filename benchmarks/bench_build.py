@@ -124,7 +124,7 @@ def main() -> None:
             cold[jobs] = timed(
                 f"build --no-fix, cold, --jobs {jobs}",
                 lambda command=command, jobs=jobs: subprocess.run(
-                    [*command, "--jobs", str(jobs)], check=False
+                    [*command, "--jobs", str(jobs)], capture_output=True, check=False
                 ),
                 baseline,
             )
