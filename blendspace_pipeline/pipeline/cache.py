@@ -209,8 +209,9 @@ class Pack:
         self, path: Path, info: os.stat_result, digest: str, key: str, measured: list[tuple[str, Measurement]]
     ) -> None:
         if settled(info):
-            self.used_digests[stat_key(path, info)] = digest
-            remember_digest(stat_key(path, info), digest)
+            known = stat_key(path, info)
+            self.used_digests[known] = digest
+            remember_digest(known, digest)
         self.used_entries[key] = self.entries[key] if key in self.entries else to_json(measured)
 
     def save(self) -> None:

@@ -173,13 +173,14 @@ def _measure_all(job_list: list[Job], pack: cache.Pack, jobs: int, progress: Pro
             continue
         stats[index] = info
         digest = pack.digest(job.path, info)
-        key = digest and cache.cache_key(job.path, job.settings.cache_key(), job.time_range, digest)
-        measured = pack.load(key) if digest and key else None
-        if digest and key and measured is not None:
-            pack.remember(job.path, info, digest, key, measured)
-            results[index] = measured
-        else:
-            todo.append(index)
+        if digest is not None:
+            key = cache.cache_key(job.path, job.settings.cache_key(), job.time_range, digest)
+            measured = pack.load(key)
+            if measured is not None:
+                pack.remember(job.path, info, digest, key, measured)
+                results[index] = measured
+                continue
+        todo.append(index)
     done = len(job_list) - len(todo)
     if progress and done:
         progress(done, len(job_list), "cached")

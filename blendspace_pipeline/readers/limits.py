@@ -57,18 +57,7 @@ def read_regular_file(path: Path, *, what: str = "file", limit: int = MAX_FILE_B
         ) from None
     try:
         info = os.fstat(handle)
-        if not stat.S_ISREG(info.st_mode):
-            raise ClipReadError(
-                f"the {what} is not a regular file (a device, FIFO or socket)",
-                path=path,
-                hint="point the manifest at the clip file itself",
-            )
-        if info.st_size > limit:
-            raise ClipReadError(
-                f"the {what} is {info.st_size:,} bytes, more than the limit of {limit:,}",
-                path=path,
-                hint="split the take into shorter clips",
-            )
+        _check_info(info, path, what, limit)
         with os.fdopen(handle, "rb", closefd=True) as stream:
             handle = -1
             # Ask for the size fstat saw (+1 to notice growth): `read(limit + 1)` allocated a
@@ -96,15 +85,20 @@ def check_regular(path: Path, *, what: str = "file") -> None:
         raise ClipReadError(
             f"cannot read the {what}: {error.strerror or error}", path=path, hint="check the path"
         ) from None
+    _check_info(info, path, what, MAX_FILE_BYTES)
+
+
+def _check_info(info: os.stat_result, path: Path, what: str, limit: int) -> None:
+    """Raise unless ``info`` is a regular file of at most ``limit`` bytes."""
     if not stat.S_ISREG(info.st_mode):
         raise ClipReadError(
             f"the {what} is not a regular file (a device, FIFO or socket)",
             path=path,
             hint="point the manifest at the clip file itself",
         )
-    if info.st_size > MAX_FILE_BYTES:
+    if info.st_size > limit:
         raise ClipReadError(
-            f"the {what} is {info.st_size:,} bytes, more than the limit of {MAX_FILE_BYTES:,}",
+            f"the {what} is {info.st_size:,} bytes, more than the limit of {limit:,}",
             path=path,
             hint="split the take into shorter clips",
         )
