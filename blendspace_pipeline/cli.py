@@ -6,7 +6,9 @@ subprocess; it never lets a traceback reach the user: input errors exit 2 with
 `path:line: message`, anything unexpected exits 3 with one line and the path of a log file.
 
 Only the command being run is imported (numpy, pxr and the rest load with it): `--version` and
-`--help` answer from the help lines in `COMMAND_HELP`, well under 0.3 s.
+`--help` answer from the help lines in `COMMAND_HELP`, well under 0.3 s. When a build server
+runs (`blendspace server start`), the command line hands the command to it instead: see
+`blendspace_pipeline.server`.
 The crash log is private to the user: `<user cache>/blendspace-pipeline/crash.log` in a 0700
 folder, opened without following symlinks; when it cannot be written the one line says so.
 """
@@ -24,7 +26,7 @@ from pathlib import Path
 from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError, printable
 
-COMMANDS = ("build", "check", "rules", "schema", "eval", "export", "index", "suggest")
+COMMANDS = ("build", "check", "rules", "schema", "eval", "export", "index", "suggest", "server")
 # Each command module's HELP, repeated here so the top-level help needs no import
 # (tests/test_hostile_inputs.py checks they agree).
 COMMAND_HELP: dict[str, str] = {
@@ -36,7 +38,11 @@ COMMAND_HELP: dict[str, str] = {
     "export": "write the blend space for Godot (.tres), Unity (.controller) or Unreal (editor Python script)",
     "index": "measure a whole mocap library into a shared store of features (on Dask)",
     "suggest": "propose library clips (from `blendspace index`) that fill a manifest's placeholders",
+    "server": "start, stop or query the build server that keeps the tool loaded between commands",
 }
+# Commands a running build server may run for the caller (`index` starts Dask workers of its own;
+# `server` manages the server).
+SERVED = frozenset(COMMANDS) - {"index", "server"}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -114,7 +120,20 @@ def _one_line(error: BaseException) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The `blendspace` entry point. As the command line (no ``argv``) it hands the command to the
+    build server when one runs; called with a list (tests, scripts) it always runs here."""
     words = list(sys.argv[1:] if argv is None else argv)
+    if argv is None and _chosen_command(words) in SERVED:
+        from blendspace_pipeline.server.client import forward
+
+        code = forward(words)
+        if code is not None:
+            return code
+    return run_here(words)
+
+
+def run_here(words: list[str]) -> int:
+    """Run the command in this process (also what the build server's forked process calls)."""
     try:
         parser = build_parser(_chosen_command(words), lazy=True)
         args = parser.parse_args(words)

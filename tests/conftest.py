@@ -23,6 +23,9 @@ def shared_data(*parts: str) -> Path:
 @pytest.fixture(autouse=True)
 def _isolated_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
+    # A developer's running build server must not answer the tests' `blendspace` processes.
+    monkeypatch.setenv("BLENDSPACE_NO_SERVER", "1")
+    monkeypatch.setenv("BLENDSPACE_SERVER_DIR", str(tmp_path_factory.mktemp("server")))
     monkeypatch.delenv("BLENDSPACE_RULE_PATH", raising=False)
 
 

@@ -1,0 +1,249 @@
+"""The build server, for real: `blendspace server start` in the background, then commands typed as
+a user would (`python -m blendspace_pipeline ...`, a new process each) that it runs.
+
+What must hold: a served command is indistinguishable from a local one (same bytes written, same
+exit code, same messages on the caller's own stdout/stderr, the caller's folder and environment),
+Ctrl-C still interrupts it, and a server that could run stale code (the tool or a package changed
+on disk) or another environment's code never does: the command then runs locally.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from conftest import tidy_set
+
+from blendspace_pipeline.motion.procedural import generate
+from blendspace_pipeline.server import address
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+pytestmark = pytest.mark.skipif(
+    not address.supported(), reason="the build server needs fork and Unix sockets"
+)
+
+
+def _project(folder: Path) -> Path:
+    for spec in tidy_set().values():
+        (folder / "clips").mkdir(parents=True, exist_ok=True)
+        write_bvh_clip(generate(spec), folder / "clips" / f"{spec.name}.bvh")
+    manifest = folder / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: served\nclips:\n  - path: clips/*.bvh\noutput: {formats: [json, usd, html, png]}\n",
+        encoding="utf-8",
+    )
+    return manifest
+
+
+def _env(server_dir: Path, cache: Path, **extra: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != address.NO_SERVER_VARIABLE}
+    env.update({address.SERVER_DIR_VARIABLE: str(server_dir), "BLENDSPACE_CACHE_DIR": str(cache), **extra})
+    return env
+
+
+def _blendspace(*args: str, env: dict[str, str], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=cwd,
+        timeout=300,
+        check=False,
+    )
+
+
+def _status(env: dict[str, str]) -> dict[str, object] | None:
+    """What the server says about itself (through the client the commands use)."""
+    code = (
+        "import json; from blendspace_pipeline.server import client; print(json.dumps(client.ask('status')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    answer: dict[str, object] | None = json.loads(out.stdout)
+    return answer
+
+
+def _tree(folder: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.fixture
+def server(tmp_path: Path) -> Iterator[dict[str, str]]:
+    """A running server in a private folder of its own; the environment that reaches it."""
+    env = _env(tmp_path / "srv", tmp_path / "cache")
+    started = _blendspace("server", "start", "--idle-timeout", "600", env=env)
+    assert started.returncode == 0, started.stderr
+    assert "started" in started.stdout
+    yield env
+    stopped = _blendspace("server", "stop", env=env)
+    assert stopped.returncode == 0, stopped.stderr
+    assert _status(env) is None
+
+
+def test_a_served_build_writes_what_a_local_build_writes(server: dict[str, str], tmp_path: Path) -> None:
+    local_project, served_project = tmp_path / "local", tmp_path / "served"
+    _project(local_project)
+    _project(served_project)
+    local = _blendspace(
+        "build", "manifest.yaml", env={**server, address.NO_SERVER_VARIABLE: "1"}, cwd=local_project
+    )
+    served = _blendspace("build", "manifest.yaml", env=server, cwd=served_project)  # relative to its cwd
+    assert _status(server)["served"] == 1  # type: ignore[index]
+    assert served.returncode == local.returncode == 0, served.stderr
+    assert served.stdout.replace("served/", "local/") == local.stdout.replace("served/", "local/")
+    assert _tree(served_project / "build") == _tree(local_project / "build")
+    # The caller's environment reached the command: its cache folder filled.
+    assert any((tmp_path / "cache").rglob("*"))
+
+
+def test_a_served_command_keeps_the_exit_code_and_error_format(
+    server: dict[str, str], tmp_path: Path
+) -> None:
+    manifest = _project(tmp_path)
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8") + "axes: [{feature: turn_rat}]\n", encoding="utf-8"
+    )
+    served = _blendspace("check", str(manifest), env=server)
+    local = _blendspace("check", str(manifest), env={**server, address.NO_SERVER_VARIABLE: "1"})
+    assert _status(server)["served"] == 1  # type: ignore[index]
+    assert served.returncode == local.returncode == 2
+    assert served.stderr == local.stderr
+    assert f"{manifest}:6:" in served.stderr and "Traceback" not in served.stderr
+
+
+def test_ctrl_c_interrupts_a_served_command(server: dict[str, str], tmp_path: Path) -> None:
+    manifest = _project(tmp_path)
+    plugins = tmp_path / "plugins"
+    plugins.mkdir()
+    started = tmp_path / "rule-started"
+    (plugins / "slow_rule.py").write_text(
+        textwrap.dedent(
+            f"""
+            import pathlib, time
+            from blendspace_pipeline.api import Rule
+
+            class SlowRule(Rule):
+                slug = "studio-slow"
+                code = "ST900"
+                severity = "info"
+                summary = "takes a minute"
+
+                def check(self, space):
+                    pathlib.Path({str(started)!r}).touch()
+                    time.sleep(120)
+                    return []
+            """
+        ),
+        encoding="utf-8",
+    )
+    env = {**server, "BLENDSPACE_RULE_PATH": str(plugins)}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not started.exists() and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.1)
+    assert started.exists(), process.communicate()
+    process.send_signal(signal.SIGINT)
+    _out, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert "interrupted" in err
+    assert _status(server)["served"] == 1  # type: ignore[index]
+
+
+def test_a_server_whose_packages_changed_stops_and_the_command_runs_locally(tmp_path: Path) -> None:
+    extra = tmp_path / "site"  # a folder on sys.path, as site-packages is
+    extra.mkdir()
+    env = _env(tmp_path / "srv", tmp_path / "cache", PYTHONPATH=str(extra))
+    assert _blendspace("server", "start", "--idle-timeout", "600", env=env).returncode == 0
+    try:
+        assert _status(env)["current"] is True  # type: ignore[index]
+        time.sleep(0.05)
+        (extra / "new_package.py").write_text("", encoding="utf-8")  # `pip install` of something
+        manifest = _project(tmp_path / "project")
+        result = _blendspace("check", str(manifest), env=env)
+        assert result.returncode in (0, 1), result.stderr
+        assert "served" in result.stdout or "samples" in result.stdout or result.stdout
+        deadline = time.monotonic() + 10
+        while _status(env) is not None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert _status(env) is None  # it stopped itself instead of running old code
+    finally:
+        _blendspace("server", "stop", env=env)
+
+
+def test_a_caller_with_another_sys_path_runs_locally_and_the_server_stays(
+    server: dict[str, str], tmp_path: Path
+) -> None:
+    other = tmp_path / "other"
+    other.mkdir()
+    manifest = _project(tmp_path / "project")
+    result = _blendspace("check", str(manifest), env={**server, "PYTHONPATH": str(other)})
+    assert result.returncode in (0, 1), result.stderr
+    answer = _status(server)
+    assert answer is not None and answer["served"] == 0
+    status = _blendspace("server", "status", env={**server, "PYTHONPATH": str(other)})
+    assert "does not serve this shell" in status.stdout
+
+
+def test_status_and_stop_without_a_server(tmp_path: Path) -> None:
+    env = _env(tmp_path / "srv", tmp_path / "cache")
+    status = _blendspace("server", "status", env=env)
+    assert status.returncode == 1 and "not running" in status.stdout
+    stop = _blendspace("server", "stop", env=env)
+    assert stop.returncode == 0 and "not running" in stop.stdout
+
+
+def test_a_shared_server_folder_is_refused_and_ignored(tmp_path: Path) -> None:
+    folder = tmp_path / "srv"
+    folder.mkdir(mode=0o755)
+    folder.chmod(0o755)
+    env = _env(folder, tmp_path / "cache")
+    result = _blendspace("server", "start", env=env)
+    assert result.returncode == 2
+    assert "can be opened by other users" in result.stderr and "Traceback" not in result.stderr
+    # A socket planted in a folder others can write is never used.
+    assert address.private_problem(folder) is not None
+
+
+def test_an_idle_server_stops_by_itself(tmp_path: Path) -> None:
+    env = _env(tmp_path / "srv", tmp_path / "cache")
+    assert _blendspace("server", "start", "--idle-timeout", "1", env=env).returncode == 0
+    deadline = time.monotonic() + 30
+    while _status(env) is not None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _status(env) is None
+    assert not list((tmp_path / "srv").glob("*.sock"))
+
+
+def test_the_fingerprint_moves_with_the_code_and_sys_path(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    before = address.fingerprint()
+    assert address.fingerprint() == before
+    script_folder = [str(tmp_path / "elsewhere"), *sys.path[1:]]
+    monkeypatch.setattr(sys, "path", script_folder)  # sys.path[0] is the script's folder: not counted
+    assert address.fingerprint() == before
+    monkeypatch.setattr(sys, "path", [*sys.path, str(tmp_path)])
+    changed = address.fingerprint()
+    assert changed != before
+    time.sleep(0.01)
+    (tmp_path / "x.py").write_text("", encoding="utf-8")
+    assert address.fingerprint() != changed
