@@ -42,6 +42,11 @@ ROWS: dict[str, tuple[str, list[str], list[str]]] = {
         ["bench_rebuild.py", "--clips", "1000"],
         ["bench_rebuild.py", "--clips", "100"],
     ),
+    "server": (
+        "1,000 clips, one clip edited, new process: without and with the build server",
+        ["bench_server.py", "--clips", "1000"],
+        ["bench_server.py", "--clips", "100", "--edits", "1"],
+    ),
     "scale": (
         "10,000 samples, stages after measurement",
         ["bench_scale.py", "--samples", "10000", "--browser"],

@@ -1,0 +1,101 @@
+"""Commands as a user types them (a new process each), with and without the build server.
+
+    python benchmarks/bench_server.py [--clips 1000] [--seconds 7] [--jobs 1] [--edits 3]
+
+A library of procedural 7 s walks at 120 fps (`bench_rebuild.write_library`, 0.46 MB of BVH each)
+is built once without the server. Then, each as `python -m blendspace_pipeline build` in a new
+process, as a pre-commit hook or an artist's save runs it:
+- one clip edited (re-authored at another speed, so its sample moves), without the server: the
+  baseline;
+- the same kind of edit through a running server (`blendspace server start` first; its start is
+  timed too), `--edits` times with a different clip each, median and best;
+- nothing changed, with and without the server.
+Wall seconds and the ratio to the baseline (the issue's goal: one clip edited <= 1 s). Nothing is
+asserted; on a shared machine run it alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from bench_rebuild import write_library
+
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+
+def _run(command: list[str], env: dict[str, str]) -> float:
+    start = time.perf_counter()
+    done = subprocess.run(command, capture_output=True, text=True, env=env, check=False)
+    elapsed = time.perf_counter() - start
+    if done.returncode not in (0, 1):
+        raise SystemExit(f"{' '.join(command)} exited {done.returncode}:\n{done.stderr[-2000:]}")
+    return elapsed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--clips", type=int, default=1000)
+    parser.add_argument("--seconds", type=float, default=7.0)
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--edits", type=int, default=3)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        paths = write_library(root / "clips", args.clips, args.seconds)
+        manifest = root / "manifest.yaml"
+        manifest.write_text(
+            "schema_version: 1\nname: library\nclips:\n  - path: clips/*.bvh\n"
+            "output: {formats: [json, usd, html, png]}\n",
+            encoding="utf-8",
+        )
+        env = {
+            **os.environ,
+            "BLENDSPACE_CACHE_DIR": str(root / "cache"),
+            "BLENDSPACE_SERVER_DIR": str(root / "srv"),
+        }
+        local = {**env, "BLENDSPACE_NO_SERVER": "1"}
+        env.pop("BLENDSPACE_NO_SERVER", None)
+        blendspace = [sys.executable, "-m", "blendspace_pipeline"]
+        build = [*blendspace, "build", str(manifest), "--no-fix", "--jobs", str(args.jobs)]
+
+        def edit(index: int, speed: float) -> None:
+            path = paths[(index * 97 + len(paths) // 2) % len(paths)]
+            write_bvh_clip(generate(GaitSpec(path.stem, speed=speed, duration=args.seconds, fps=120.0)), path)
+
+        rows: list[tuple[str, float]] = []
+        rows.append(("build, cold, no server (not a ratio's base)", _run(build, local)))
+        edit(0, 2.2)
+        baseline = _run(build, local)
+        rows.append(("one clip edited, no server (baseline)", baseline))
+        rows.append(("nothing changed, no server", _run(build, local)))
+        rows.append(("`blendspace server start` (once)", _run([*blendspace, "server", "start"], env)))
+        try:
+            served = []
+            for index in range(1, args.edits + 1):
+                edit(index, 2.2 + 0.1 * index)
+                served.append(_run(build, env))
+            rows.append((f"one clip edited, server (median of {len(served)})", statistics.median(served)))
+            rows.append(("one clip edited, server (best)", min(served)))
+            rows.append(("nothing changed, server", _run(build, env)))
+        finally:
+            subprocess.run([*blendspace, "server", "stop"], capture_output=True, env=env, check=False)
+        print(
+            f"{args.clips} clips of {args.seconds:g} s, build --no-fix --jobs {args.jobs}, each a new process"
+        )
+        print(f"{'':<48} {'wall':>8}  {'ratio':>7}")
+        for label, wall in rows:
+            print(f"{label:<48} {wall:7.3f}s  {wall / baseline:6.3f}x")
+
+
+if __name__ == "__main__":
+    main()
