@@ -247,3 +247,25 @@ def test_the_fingerprint_moves_with_the_code_and_sys_path(
     time.sleep(0.01)
     (tmp_path / "x.py").write_text("", encoding="utf-8")
     assert address.fingerprint() != changed
+
+
+def test_main_called_with_a_list_runs_in_process(
+    server: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from blendspace_pipeline.cli import main
+
+    for key, value in server.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.delenv(address.NO_SERVER_VARIABLE, raising=False)
+    assert main(["check", str(_project(tmp_path))]) in (0, 1)
+    assert _status(server)["served"] == 0  # type: ignore[index]
+
+
+def test_server_start_where_there_is_no_fork_says_so(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from blendspace_pipeline.cli import main
+
+    monkeypatch.setattr(address, "supported", lambda: False)
+    assert main(["server", "start"]) == 2
+    assert "not available on this platform" in capsys.readouterr().err

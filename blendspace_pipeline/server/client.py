@@ -114,11 +114,15 @@ def forward(argv: list[str]) -> int | None:
     if sock is None:
         return None
     with sock:
+        try:
+            cwd = os.getcwd()
+        except OSError:  # the working folder was deleted: let the local run report it
+            return None
         fds, streams = _streams()
         request = {
             "op": "run",
             "argv": argv,
-            "cwd": os.getcwd(),
+            "cwd": cwd,
             "env": dict(os.environ),
             "umask": _umask(),
             "streams": streams,

@@ -163,9 +163,12 @@ class Server:
             if request.get("fingerprint") != self.fingerprint:
                 _reply(conn, {"accepted": False, "why": "the caller's interpreter or sys.path differs"})
                 return True
-            # Accept before forking: the command's exit code must be the second line the caller reads.
-            _reply(conn, {"accepted": True})
-            if os.fork() == 0:  # the command's process: never returns
+            try:
+                pid = os.fork()
+            except OSError as error:  # out of memory or processes: the caller runs it itself
+                _reply(conn, {"accepted": False, "why": f"cannot fork: {error.strerror or error}"})
+                return True
+            if pid == 0:  # the command's process (it says "accepted", then the exit code): never returns
                 _run_command(conn, self.listener, request, fds, self.imported_env)
             self.served += 1
             self.last_command = time.monotonic()
@@ -221,6 +224,7 @@ def _run_command(
     """In the forked process: become the caller's command, run it, send its exit code, exit."""
     code = 3
     try:
+        _reply(conn, {"accepted": True})
         for number in (signal.SIGCHLD, signal.SIGTERM, signal.SIGHUP):
             signal.signal(number, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)
