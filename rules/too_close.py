@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 from collections.abc import Iterator
 
 from blendspace_pipeline.rules._geometry import distance
@@ -11,11 +12,17 @@ from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
 class TooClose(Rule):
     """Samples closer than `thresholds.too_close` (normalised units; τd = 8 is the paper's value;
-    a pair exactly τd apart is not too close) are grouped into clusters (single linkage); each
-    cluster is one finding. Keep one representative (the clip nearest the cluster centre) or
-    replace the cluster by their interpolation (`fixes.too_close`). The suggested placeholder is
-    where the merged clip would go (the paper's green marker): the mean of the members' measured
-    positions. The fix never drops a key clip (on a main axis, or a hull corner).
+    a pair exactly τd apart is not too close). Each finding is one representative and the samples
+    closer than τd to it: the representative is, among the samples not yet in a finding, the one
+    with the most such neighbours (ties: nearest the centre of its group, then by name). So every
+    member of a finding lies within τd of its representative, and no chain of close pairs runs
+    across a dense library (linking them transitively made one 1,000-clip "cluster" of a random
+    1,000-clip library, and keep-representative would have dropped 999 clips). Keeping every
+    finding's representative (`fixes.too_close: keep-representative`) leaves no two samples
+    closer than τd, and each dropped clip has a kept one within τd; `merge` replaces a finding by
+    the equal-weight blend of its members. The suggested placeholder is where the merged clip
+    would go (the paper's green marker): the mean of the members' measured positions. The fix
+    never drops a key clip (on a main axis, or a hull corner).
     """
 
     slug = "too-close"
@@ -26,34 +33,67 @@ class TooClose(Rule):
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
         tau = space.thresholds["too_close"]
-        # Clusters: samples linked by chains of pairs closer than tau (a k-d tree finds the pairs).
-        clusters = {members[0]: members for members in space.close_groups(tau)}
-        for members in clusters.values():
-            if len(members) < 2:
-                continue
+        for keep, members in sorted(_leader_groups(space, tau), key=lambda group: group[1][0]):
             names = [space.samples[i].name for i in members]
+            others = [space.samples[i].name for i in members if i != keep]
             cx = sum(space.samples[i].position[0] for i in members) / len(members)
             cy = sum(space.samples[i].position[1] for i in members) / len(members)
-            centre_n = space.to_normalised((cx, cy))
             mx = sum(space.samples[i].measured[0] for i in members) / len(members)
             my = sum(space.samples[i].measured[1] for i in members) / len(members)
-            # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
-            keep = min(
-                members,
-                key=lambda i: (
-                    round(distance(space.samples[i].normalised, centre_n), 9),
-                    space.samples[i].name,
-                ),
-            )
+            verb = "lies" if len(others) == 1 else "lie"
             yield self.report(
-                f"{len(names)} clips lie closer than {tau:g} (normalised): {', '.join(names)}",
+                f"{', '.join(others)} {verb} closer than {tau:g} (normalised) to {space.samples[keep].name}",
                 clips=names,
                 position=(cx, cy),
-                hint=f"keep one representative ({space.samples[keep].name} is nearest the centre) or merge them "
-                "(fixes.too_close: keep-representative | merge)",
+                hint=f"keep one representative ({space.samples[keep].name}: the others lie within {tau:g} "
+                "of it) or merge them (fixes.too_close: keep-representative | merge)",
                 fix="too-close",
                 fix_data={"keep": space.samples[keep].name, "centre": [cx, cy]},
                 placeholders=[
                     placeholder(space, (mx, my), "suggested", self.slug, f"merge of {', '.join(names)}")
                 ],
             )
+
+
+def _leader_groups(space: SpaceView, tau: float) -> list[tuple[int, list[int]]]:
+    """(representative, sorted members) groups, greedily: the free sample with the most free
+    neighbours closer than ``tau`` takes them. A heap with lazy re-evaluation keeps this about
+    n log n: a sample's key only worsens as its neighbours are taken (fewer neighbours), and it
+    is re-pushed with the new key when popped stale."""
+    pairs = space.close_pairs(tau)
+    if not len(pairs):
+        return []
+    count = len(space.samples)
+    neighbours: list[list[int]] = [[] for _ in range(count)]
+    for i, j in pairs.tolist():
+        neighbours[i].append(j)
+        neighbours[j].append(i)
+    points = space.normalised_positions
+    free = [True] * count
+
+    def key(index: int) -> tuple[int, float, str] | None:
+        group = [index, *(j for j in neighbours[index] if free[j])]
+        if len(group) < 2:
+            return None
+        centre = (float(points[group, 0].mean()), float(points[group, 1].mean()))
+        # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
+        return (-len(group), round(distance(points[index], centre), 9), space.samples[index].name)
+
+    heap = [(k, i) for i in range(count) if neighbours[i] and (k := key(i)) is not None]
+    heapq.heapify(heap)
+    groups = []
+    while heap:
+        stale, index = heapq.heappop(heap)
+        if not free[index]:
+            continue
+        current = key(index)
+        if current is None:
+            continue
+        if current != stale:
+            heapq.heappush(heap, (current, index))
+            continue
+        members = sorted([index, *(j for j in neighbours[index] if free[j])])
+        for member in members:
+            free[member] = False
+        groups.append((index, members))
+    return groups

@@ -240,7 +240,9 @@ def expected_acute(space: RandomSpace) -> set[Key]:
 
 
 def expected_too_close(space: RandomSpace) -> set[Key]:
-    """Single-linkage clusters of samples closer than too_close, with the member nearest the centre."""
+    """Leader groups, by brute force in exact arithmetic: while some free sample has a free
+    neighbour closer than too_close, the one with the most (then nearest the centre of its group,
+    then first by name) takes them all and keeps its own name as the representative."""
     names = names_of(space)
     neighbours = {
         a: {
@@ -250,26 +252,24 @@ def expected_too_close(space: RandomSpace) -> set[Key]:
         }
         for a in names
     }
-    seen: set[str] = set()
+    free = set(names)
     found: set[Key] = set()
-    for start in names:
-        if start in seen:
-            continue
-        cluster, todo = {start}, [start]
-        while todo:  # breadth-first over the "closer than" graph
-            for other in neighbours[todo.pop()] - cluster:
-                cluster.add(other)
-                todo.append(other)
-        seen |= cluster
-        if len(cluster) < 2:
-            continue
-        centre = (
-            sum((space.point(n)[0] for n in cluster), Fraction(0)) / len(cluster),
-            sum((space.point(n)[1] for n in cluster), Fraction(0)) / len(cluster),
-        )
-        keep = min(cluster, key=lambda n: (squared(space.point(n), centre), n))
-        found.add(("cluster", frozenset(cluster), keep))
-    return found
+    while True:
+        candidates = []
+        for a in sorted(free):
+            group = {a} | (neighbours[a] & free)
+            if len(group) < 2:
+                continue
+            centre = (
+                sum((space.point(n)[0] for n in group), Fraction(0)) / len(group),
+                sum((space.point(n)[1] for n in group), Fraction(0)) / len(group),
+            )
+            candidates.append(((-len(group), squared(space.point(a), centre), a), group))
+        if not candidates:
+            return found
+        (_, _, keep), group = min(candidates, key=lambda candidate: candidate[0])
+        free -= group
+        found.add(("cluster", frozenset(group), keep))
 
 
 def actual_too_close(findings: list[Diagnostic]) -> set[Key]:

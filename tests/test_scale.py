@@ -57,23 +57,33 @@ def test_close_pairs_on_a_grid_leave_out_pairs_exactly_at_the_radius() -> None:
 
 
 def _too_close_all_pairs(space: SpaceView, tau: float) -> list[list[str]]:
-    """The clusters the all-pairs rule found: connected components of the closer-than-tau graph."""
+    """The groups the rule must find, testing all pairs and rescanning every free sample at each
+    step (no k-d tree, no heap): the free sample with the most free neighbours closer than tau
+    (then nearest its group's centre, then by name) takes them."""
     count = len(space.samples)
-    parent = list(range(count))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            i = parent[i]
-        return i
-
+    at = [space.samples[i].normalised for i in range(count)]
+    neighbours: list[set[int]] = [set() for _ in range(count)]
     for i, j in itertools.combinations(range(count), 2):
-        a, b = space.samples[i].normalised, space.samples[j].normalised
-        if math.hypot(a[0] - b[0], a[1] - b[1]) < tau:
-            parent[root(j)] = root(i)
-    groups: dict[int, list[str]] = {}
-    for i in range(count):
-        groups.setdefault(root(i), []).append(space.samples[i].name)
-    return [names for names in groups.values() if len(names) > 1]
+        if math.hypot(at[i][0] - at[j][0], at[i][1] - at[j][1]) < tau:
+            neighbours[i].add(j)
+            neighbours[j].add(i)
+    free = set(range(count))
+    groups: list[list[str]] = []
+    while True:
+        best: tuple[tuple[int, float, str], set[int]] | None = None
+        for i in free:
+            group = {i} | (neighbours[i] & free)
+            if len(group) < 2:
+                continue
+            cx = sum(at[m][0] for m in group) / len(group)
+            cy = sum(at[m][1] for m in group) / len(group)
+            key = (-len(group), round(math.hypot(at[i][0] - cx, at[i][1] - cy), 9), space.samples[i].name)
+            if best is None or key < best[0]:
+                best = (key, group)
+        if best is None:
+            return groups
+        free -= best[1]
+        groups.append([space.samples[m].name for m in sorted(best[1])])
 
 
 def test_too_close_finds_the_same_clusters_as_all_pairs() -> None:
