@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not address.supported():
         sys.stderr.write(
-            "blendspace server: not available on this platform (it needs fork and Unix sockets); "
+            "blendspace server: not available on this platform (Linux only: it forks without exec); "
             "commands run in their own process\n"
         )
         return EXIT_INPUT

@@ -28,8 +28,11 @@ PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def supported() -> bool:
-    """The server forks per command and passes the caller's descriptors: POSIX only."""
-    return hasattr(os, "fork") and hasattr(socket, "AF_UNIX") and hasattr(socket, "send_fds")
+    """The server forks per command (without exec) and passes the caller's descriptors: Linux.
+    macOS has both calls, but forking a process that has loaded system frameworks (Accelerate
+    under numpy, the Objective-C runtime) without exec is unsafe there: Python's own
+    multiprocessing stopped doing it on macOS in 3.8."""
+    return sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(socket, "send_fds")
 
 
 def disabled() -> bool:
