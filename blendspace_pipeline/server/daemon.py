@@ -11,8 +11,9 @@ imports on a 2-core machine) and nothing a command does (its working folder, env
 never runs a command, so it stays as it was after its imports.
 
 The server stops when its socket has been idle for `--idle-timeout` seconds, on `blendspace server
-stop`, on SIGTERM, and as soon as its own code changed on disk (it answers that request with
-"run it yourself" and exits), so it never runs code older than what is installed.
+stop` and on SIGTERM. When its own code changed on disk (an upgrade, an edited checkout, a package
+installed on `sys.path`), it answers the command that noticed with "run it yourself" and starts
+again in place (exec), so it never runs code older than what is installed.
 """
 
 from __future__ import annotations
@@ -90,6 +91,7 @@ class Server:
         self.fingerprint = fingerprint()
         self.started = time.time()
         self.served = 0
+        self.stale = False  # set when the installed code moved: the server starts again, fresh
         self.last_command = time.monotonic()  # idle time counts from here (status requests do not count)
         self.path = socket_path()
         self.listener: socket.socket | None = None
@@ -159,6 +161,7 @@ class Server:
                 return True
             if fingerprint() != self.fingerprint:
                 _reply(conn, {"accepted": False, "why": "the tool changed on disk since the server started"})
+                self.stale = True
                 return False
             if request.get("fingerprint") != self.fingerprint:
                 _reply(conn, {"accepted": False, "why": "the caller's interpreter or sys.path differs"})
@@ -320,6 +323,11 @@ def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
         pass
     finally:
         server.release()
+    if server.stale:  # the command that noticed ran in its caller; the next ones get the new code
+        sys.stderr.write("blendspace server: the installed code changed; starting again\n")
+        sys.stderr.flush()
+        arguments = ["-m", "blendspace_pipeline.server.daemon", "--idle-timeout", str(idle_timeout)]
+        os.execv(sys.executable, [sys.executable, *arguments])
     return 0
 
 
