@@ -131,3 +131,23 @@ def test_the_rule_api_imports_no_reader_writer_or_report() -> None:
     ]
     assert not heavy, heavy
     assert "pxr" not in loaded.stdout
+
+
+def test_every_package_folder_is_installed() -> None:
+    """pyproject.toml lists the packages one by one: a new folder missing there works from the
+    checkout and fails in every installed copy (a pre-commit environment, a wheel)."""
+    import tomllib
+
+    listed = set(
+        tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"][
+            "packages"
+        ]
+    )
+    folders = {
+        ".".join(init.parent.relative_to(PACKAGE.parent).parts)
+        for init in PACKAGE.rglob("__init__.py")
+        if "__pycache__" not in init.parts
+    }
+    assert folders - listed == set(), (
+        f"add to [tool.setuptools] packages in pyproject.toml: {sorted(folders - listed)}"
+    )
