@@ -9,6 +9,7 @@ is when the file says so (USD, glTF), and is ``None`` when the format does not k
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
@@ -135,12 +136,78 @@ def validate_clip(clip: Clip) -> Clip:
 def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
     """World rotations (F, J, 4) and positions (F, J, 3) of every joint on every frame.
 
-    Vectorised over frames: one numpy operation per term, joint by joint, parents first. The
-    terms are `quaternions.multiply` and `quaternions.rotate`'s, in their order (so the result is
-    the same to the bit), written straight into the output columns: stacking each product and
-    copying it in cost a third of the time. (Grouping the joints of a level, or component-major
-    copies, measured no faster: the arithmetic, not the call count, is the floor.)
+    Vectorised over frames and over the joints of one depth of the hierarchy: all joints whose
+    parents are done are composed in one numpy operation per term, on component-major copies
+    ((4, J, F): each joint's frames contiguous) of the local transforms, then the result is laid
+    back out as (F, J, ...). The terms are `quaternions.multiply` and `quaternions.rotate`'s, in
+    their order, element by element, so the result is `forward_kinematics_by_joint`'s to the bit
+    (tested); a 19-joint rig takes 6 steps instead of 18, on contiguous rows instead of strided
+    columns.
     """
+    skeleton = clip.skeleton
+    local_rot, local_pos = clip.rotations, clip.translations
+    if (
+        not skeleton.has_hierarchy
+        or local_rot.dtype != np.float64
+        or local_pos.dtype != np.float64
+        or local_rot.ndim != 3
+        or local_pos.ndim != 3
+    ):
+        return forward_kinematics_by_joint(clip)
+    frames, count = local_rot.shape[:2]
+    levels = _levels(tuple(skeleton.parents))
+    rot_in = np.empty((4, count, frames))
+    rot_in[...] = local_rot.transpose(2, 1, 0)
+    pos_in = np.empty((3, count, frames))
+    pos_in[...] = local_pos.transpose(2, 1, 0)
+    rot, pos = np.empty_like(rot_in), np.empty_like(pos_in)
+    roots = levels[0][0]
+    rot[:, roots] = rot_in[:, roots]
+    pos[:, roots] = pos_in[:, roots]
+    for joints, parents in levels[1:]:
+        # (4, n, F) and (3, n, F): the parents' world transforms and the joints' local ones.
+        ax, ay, az, aw = rot[:, parents]
+        bx, by, bz, bw = rot_in[:, joints]
+        out = np.empty((4, len(joints), frames))
+        out[0] = aw * bx + ax * bw + ay * bz - az * by
+        out[1] = aw * by - ax * bz + ay * bw + az * bx
+        out[2] = aw * bz + ax * by - ay * bx + az * bw
+        out[3] = aw * bw - ax * bx - ay * by - az * bz
+        rot[:, joints] = out
+        # rotate(parent, offset) = v + w t + u x t with t = 2 (u x v), u = parent's vector part.
+        vx, vy, vz = pos_in[:, joints]
+        tx, ty, tz = 2.0 * (ay * vz - az * vy), 2.0 * (az * vx - ax * vz), 2.0 * (ax * vy - ay * vx)
+        base = pos[:, parents]
+        moved = np.empty((3, len(joints), frames))
+        moved[0] = base[0] + (vx + aw * tx + (ay * tz - az * ty))
+        moved[1] = base[1] + (vy + aw * ty + (az * tx - ax * tz))
+        moved[2] = base[2] + (vz + aw * tz + (ax * ty - ay * tx))
+        pos[:, joints] = moved
+    world_rot = np.empty_like(local_rot)
+    world_rot[...] = rot.transpose(2, 1, 0)
+    world_pos = np.empty_like(local_pos)
+    world_pos[...] = pos.transpose(2, 1, 0)
+    return world_rot, world_pos
+
+
+@lru_cache(maxsize=256)
+def _levels(parents: tuple[int, ...]) -> tuple[tuple[list[int], list[int]], ...]:
+    """(joints, their parents) per depth of the hierarchy, roots first (their parents: -1).
+    Parents come before their children (`Skeleton` checks it), so one pass finds every depth."""
+    depth: list[int] = []
+    for parent in parents:
+        depth.append(0 if parent < 0 else depth[parent] + 1)
+    levels = []
+    for level in range(max(depth, default=-1) + 1):
+        joints = [joint for joint, d in enumerate(depth) if d == level]
+        levels.append((joints, [parents[joint] for joint in joints]))
+    return tuple(levels)
+
+
+def forward_kinematics_by_joint(clip: Clip) -> tuple[FloatArray, FloatArray]:
+    """`forward_kinematics` joint by joint, parents first, on the (F, J, ...) arrays as they are:
+    the reference it is tested against, and the path for tracks without a hierarchy or arrays
+    that are not float64 (kept in their dtype, as before)."""
     skeleton = clip.skeleton
     world_rot = np.empty_like(clip.rotations)
     world_pos = np.empty_like(clip.translations)
