@@ -121,6 +121,12 @@ def validate_clip(clip: Clip) -> Clip:
             hint="the frame time / time codes per second must be a positive number",
         )
     for label, values in (("rotation", clip.rotations), ("translation", clip.translations)):
+        # A NaN or inf makes the sum non-finite, so a finite sum clears the array in one pass
+        # without a boolean copy of it; a non-finite sum (or finite values that overflow it) is
+        # looked at value by value.
+        with np.errstate(over="ignore", invalid="ignore"):
+            if np.isfinite(np.sum(values)):
+                continue
         bad = ~np.isfinite(values)
         if bad.any():
             frame, joint = (int(i) for i in np.argwhere(bad)[0][:2])

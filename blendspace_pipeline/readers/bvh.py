@@ -708,7 +708,9 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
     # A channel that never moves (a rig's fingers, a mocap knee's twist: 50 of a procedural walk's
     # 60 channels, a quarter of a CMU take's) is converted once; so is a joint none of whose
     # channels moves, its quaternion repeated on every frame.
-    still = (by_channel == by_channel[:, :1]).all(axis=1)
+    # Equal extremes: every value the same (the values are finite; 0.0 and -0.0 count as equal,
+    # as they do for ==). Two reductions along the rows, no (channels, frames) comparison array.
+    still = by_channel.max(axis=1) == by_channel.min(axis=1)
     for order, members in by_order.items():
         indices = np.array([m[0] for m in members])
         if not order:
@@ -718,7 +720,7 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
         fixed = still[columns].all(axis=0)
         if fixed.any():
             first = by_channel[columns[:, fixed], :1]  # (letters, joints, 1)
-            rotations[:, indices[fixed]] = euler_quaternions(first, order)[..., 0].T
+            rotations[:, indices[fixed]] = _still_quaternions(first, order)
         if not fixed.all():
             # (letters, joints, frames), contiguous: one block of angles per letter of the order.
             angles = by_channel[columns[:, ~fixed]]
@@ -737,6 +739,26 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
         translations=translations,
         fps=1.0 / header.frame_time,
     )
+
+
+# Quaternions of still joints by their angles: a library's takes of one rig hold the same angles
+# on the joints that never move (a procedural walk: 15 of 19 joints), and converting them cost
+# as much as converting the moving ones (a few dozen numpy calls on tiny arrays).
+_STILL: dict[tuple[str, tuple[int, ...], bytes], FloatArray] = {}
+_STILL_SIZE = 1024
+
+
+def _still_quaternions(first: FloatArray, order: str) -> FloatArray:
+    """(joints, 4): `euler_quaternions` of ``first`` (letters, joints, 1), remembered by its bytes."""
+    key = (order, first.shape, first.tobytes())
+    found = _STILL.get(key)
+    if found is None:
+        found = np.ascontiguousarray(euler_quaternions(first, order)[..., 0].T)
+        found.flags.writeable = False  # shared between clips
+        if len(_STILL) >= _STILL_SIZE:
+            _STILL.clear()
+        _STILL[key] = found
+    return found
 
 
 def euler_quaternions(angles_deg: FloatArray, order: str) -> FloatArray:
