@@ -67,3 +67,27 @@ def test_without_a_hierarchy_or_in_float32_it_is_the_joint_by_joint_path() -> No
     _same(replace(clip, rotations=clip.rotations.astype(np.float32)))
     world_rot, _ = forward_kinematics(replace(clip, skeleton=replace(clip.skeleton, has_hierarchy=False)))
     assert world_rot.tobytes() == clip.rotations.tobytes()
+
+
+def test_results_do_not_share_the_kept_work_arrays() -> None:
+    """The working arrays are kept for the next clip of the same size; results are fresh arrays."""
+    a = generate(GaitSpec("a", speed=1.4, duration=0.5))
+    b = generate(GaitSpec("b", speed=3.0, turn_rate=90.0, duration=0.5))
+    first = forward_kinematics(a)
+    kept = [array.copy() for array in first]
+    forward_kinematics(b)
+    for array, copy in zip(first, kept, strict=True):
+        assert array.tobytes() == copy.tobytes()
+    _same(a)
+
+
+def test_threads_each_use_their_own_work_arrays() -> None:
+    from concurrent.futures import ThreadPoolExecutor
+
+    clips = [generate(GaitSpec(f"c{i}", speed=0.5 + i, turn_rate=20.0 * i, duration=1.0)) for i in range(6)]
+    expected = [forward_kinematics_by_joint(clip) for clip in clips]
+    with ThreadPoolExecutor(3) as pool:
+        got = list(pool.map(forward_kinematics, clips * 5))
+    for index, result in enumerate(got):
+        want = expected[index % len(clips)]
+        assert result[0].tobytes() == want[0].tobytes() and result[1].tobytes() == want[1].tobytes()

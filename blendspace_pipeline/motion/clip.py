@@ -8,6 +8,7 @@ is when the file says so (USD, glTF), and is ``None`` when the format does not k
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -162,11 +163,9 @@ def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
         return forward_kinematics_by_joint(clip)
     frames, count = local_rot.shape[:2]
     levels = _levels(tuple(skeleton.parents))
-    rot_in = np.empty((4, count, frames))
+    rot_in, pos_in, rot, pos = _work_arrays(count, frames)
     rot_in[...] = local_rot.transpose(2, 1, 0)
-    pos_in = np.empty((3, count, frames))
     pos_in[...] = local_pos.transpose(2, 1, 0)
-    rot, pos = np.empty_like(rot_in), np.empty_like(pos_in)
     roots = levels[0][0]
     rot[:, roots] = rot_in[:, roots]
     pos[:, roots] = pos_in[:, roots]
@@ -194,6 +193,32 @@ def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
     world_pos = np.empty_like(local_pos)
     world_pos[...] = pos.transpose(2, 1, 0)
     return world_rot, world_pos
+
+
+# The component-major working arrays, kept per thread for the next clip of the same size: fresh
+# ones every call are 1.8 MB of new pages for a 7 s take, and glibc hands blocks that large back to
+# the kernel when freed, so every page faulted again (slower than the old joint-by-joint code).
+# Above this size (a long take) the work dwarfs the faults and nothing is kept.
+_KEEP_WORK_BYTES = 8 * 1024 * 1024
+_WORK = threading.local()
+
+
+def _work_arrays(count: int, frames: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """(local rotations, local translations, world rotations, world positions), component-major:
+    (4, J, F), (3, J, F), (4, J, F), (3, J, F); uninitialised, overwritten by the caller."""
+    held = getattr(_WORK, "arrays", None)
+    if held is not None and held[0] == (count, frames):
+        arrays: tuple[FloatArray, FloatArray, FloatArray, FloatArray] = held[1]
+        return arrays
+    arrays = (
+        np.empty((4, count, frames)),
+        np.empty((3, count, frames)),
+        np.empty((4, count, frames)),
+        np.empty((3, count, frames)),
+    )
+    if 14 * count * frames * 8 <= _KEEP_WORK_BYTES:
+        _WORK.arrays = ((count, frames), arrays)
+    return arrays
 
 
 @lru_cache(maxsize=256)
