@@ -122,7 +122,8 @@ def _joint_mean(world_pos: FloatArray, scale: float) -> FloatArray:
     joints = world_pos.shape[1]
     if joints == 0:
         return (world_pos * scale).mean(axis=1)  # type: ignore[no-any-return]
-    mean: FloatArray = np.einsum("fjc->fc", world_pos * scale) / joints
+    # x * 1.0 is x exactly (IEEE), so metres need no scaled copy of every joint (0.4 MB a 7 s take).
+    mean: FloatArray = np.einsum("fjc->fc", world_pos if scale == 1.0 else world_pos * scale) / joints
     return mean
 
 
