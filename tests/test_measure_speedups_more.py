@@ -33,3 +33,28 @@ def test_ground_speed_by_slices_is_the_gathered_one(frames: int, reach: int, fps
     track[::3, 0] = -0.0
     got = contacts._ground_speed(track, fps, reach)
     assert got.tobytes() == _ground_speed_before(track, fps, reach).tobytes()
+
+
+def test_contacts_in_metres_read_in_place_equal_the_scaled_and_flipped_reads() -> None:
+    """Metres and +up skip the scaling copies; doubling the positions at 0.5 m per unit, or
+    flipping the up axis and reading it as -y, takes the scaling paths with the same numbers
+    (x * 2 * 0.5 and -(-x) are x exactly), so the contacts must be the same."""
+    from blendspace_pipeline.motion.clip import forward_kinematics
+    from blendspace_pipeline.motion.clip_ops.feet import contact_joints
+    from blendspace_pipeline.motion.detect import RigSettings
+    from blendspace_pipeline.motion.procedural import GaitSpec, generate_planted
+
+    clip = generate_planted(GaitSpec("walk", speed=1.4, turn_rate=25.0, duration=3.0, fps=120.0))
+    positions = forward_kinematics(clip)[1]
+    joints = contact_joints(clip, RigSettings())
+    assert joints is not None
+
+    def found(world: np.ndarray, scale: float, up: str) -> contacts.FootContacts:
+        return contacts.detect_contacts(world, joints, fps=clip.fps, meters_per_unit=scale, up_axis=up)
+
+    plain = found(positions, 1.0, "y")
+    assert plain.left and plain.right
+    assert found(positions * 2.0, 0.5, "y") == plain
+    flipped = positions.copy()
+    flipped[..., 1] = -flipped[..., 1]
+    assert found(flipped, 1.0, "-y") == plain

@@ -193,8 +193,11 @@ def detect_contacts(
     for joints in feet:
         planted = np.zeros(frames, dtype=bool)
         for joint in joints:
-            position = world_pos[:, joint] * meters_per_unit  # metres
-            height = _smooth(up_sign * position[:, up], window)
+            # Metres; x * 1.0 is x, so a clip in metres (and an up axis pointing up) is read in place.
+            position = (
+                world_pos[:, joint] if meters_per_unit == 1.0 else world_pos[:, joint] * meters_per_unit
+            )
+            height = _smooth(position[:, up] if up_sign == 1.0 else up_sign * position[:, up], window)
             floor, high = stats.percentiles(height, (_FLOOR_PERCENTILE, 100.0 - _FLOOR_PERCENTILE))
             lift = high - floor
             near = float(np.clip(_HEIGHT_SHARE * lift, *_HEIGHT_BOUNDS))
