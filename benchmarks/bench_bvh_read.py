@@ -8,7 +8,12 @@ Three workloads:
 2. long synthetic takes (``--frames`` at 120 fps, 19 joints, written by our own writer; 840
    frames is the 7 s, 0.46 MB clip of the 1,000-clip library);
 3. ``--small`` one-second procedural clips in a temporary folder, to show the per-file overhead
-   (bvhio reads only the first ``--bvhio-small`` of them; its per-file time is what is compared).
+   (bvhio reads only the first ``--bvhio-small`` of them; its per-file time is what is compared);
+4. ``--library`` distinct 7 s 120 fps takes (0.46 MB each, random speeds and turns, as
+   `bench_rebuild.write_library` writes the 1,000-clip library), each parsed once in turn after a
+   warm-up: the mean CPU time per take of ``parse``, ``read`` and ``+FK``, and parse MB/s. This
+   is what a build pays per file (a new file every time, nothing warm but the rig), where the
+   best of repeated runs on one file (above) hides the per-file costs.
 
 For each file, the best of ``--repeat`` runs in CPU time (``time.process_time``: one core, so
 the figures hold on a shared machine) of:
@@ -35,6 +40,8 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+
+import numpy as np
 
 from blendspace_pipeline.motion.clip import forward_kinematics
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
@@ -120,6 +127,44 @@ def bench_small(folder: Path, count: int, bvhio_count: int, repeat: int) -> None
     )
 
 
+def bench_library(folder: Path, count: int) -> None:
+    """Mean CPU time per take over ``count`` distinct library takes (each read once per pass)."""
+    rng = np.random.default_rng(5)
+    paths = []
+    for index in range(count + 5):
+        spec = GaitSpec(
+            f"take_{index:04d}",
+            speed=float(rng.uniform(0.0, 5.0)),
+            turn_rate=float(rng.uniform(-170, 170)),
+            duration=7.0,
+            fps=FPS,
+        )
+        paths.append(folder / f"{spec.name}.bvh")
+        write_bvh_clip(generate(spec), paths[-1])
+    warm, timed = paths[:5], paths[5:]
+    for path in warm:
+        forward_kinematics(read(path)[0])
+    size = sum(p.stat().st_size for p in timed) / 1e6 / len(timed)
+    totals = {"parse": 0.0, "read": 0.0, "+FK": 0.0}
+    for path in timed:
+        start = time.process_time()
+        parse(path)
+        middle = time.process_time()
+        clip = read(path)[0]
+        read_done = time.process_time()
+        forward_kinematics(clip)
+        end = time.process_time()
+        totals["parse"] += middle - start
+        totals["read"] += read_done - middle
+        totals["+FK"] += end - middle
+    per = {key: value / len(timed) for key, value in totals.items()}
+    print(
+        f"{len(timed)} library takes {size:5.2f} MB each, mean CPU per take: parse {per['parse'] * 1e3:6.2f} ms "
+        f"= {size / per['parse']:4.0f} MB/s/core  read {per['read'] * 1e3:6.2f} ms = {size / per['read']:4.0f} MB/s  "
+        f"+FK {per['+FK'] * 1e3:6.2f} ms = {size / per['+FK']:4.0f} MB/s"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -131,6 +176,7 @@ def main() -> None:
     parser.add_argument("--small", type=int, default=1000, help="number of one-second clips")
     parser.add_argument("--bvhio-small", type=int, default=100, help="small clips bvhio reads")
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--library", type=int, default=100, help="distinct 7 s library takes (0: skip)")
     args = parser.parse_args()
     # A build switches to pyarrow after its first few MB; measure it from the first file.
     bvh.ARROW_AFTER_BYTES = 0
@@ -147,6 +193,10 @@ def main() -> None:
             write_bvh_clip(generate(spec), long)
             bench_file(long, args.repeat, args.bvhio_max_mb)
             long.unlink()
+        if args.library > 0:
+            library = folder / "library"
+            library.mkdir()
+            bench_library(library, args.library)
         if args.small > 0:
             small = folder / "small"
             small.mkdir()

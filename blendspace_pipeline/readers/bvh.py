@@ -113,8 +113,8 @@ def parse(path: Path) -> tuple[BvhHeader, FloatArray]:
         # Nearly every BVH: located in the bytes, only the header decoded, and the C CSV parser
         # reads the MOTION block in the file's own buffer (fresh pages cost more than parsing).
         end = _content_end(raw)
-        head_end = _head_end(raw, end, _MOTION_BYTES, _FRAME_TIME_BYTES, _FRAMES_BYTES)
-        header = parse_header(raw[:head_end].decode("ascii").split("\n"), path)
+        motion_at, head_end = _head_bounds(raw, end, _MOTION_BYTES, _FRAME_TIME_BYTES, _FRAMES_BYTES)
+        header = _parse_header_remembered(raw[:head_end].decode("ascii"), motion_at, path)
         data_start = raw.count(b"\n", 0, head_end) + 1  # the 1-based line that the block begins on
         block: bytes | memoryview = memoryview(raw)[head_end:end]
     else:
@@ -170,7 +170,17 @@ def _head_end(
     frame_time: re.Pattern[AnyStr],
     frames: re.Pattern[AnyStr],
 ) -> int:
-    """Where the frame numbers start in ``text[:end]`` (str, or ASCII bytes: the same offsets).
+    return _head_bounds(text, end, motion, frame_time, frames)[1]
+
+
+def _head_bounds(
+    text: AnyStr,
+    end: int,
+    motion: re.Pattern[AnyStr],
+    frame_time: re.Pattern[AnyStr],
+    frames: re.Pattern[AnyStr],
+) -> tuple[int | None, int]:
+    """Where the first MOTION line starts (None: no such line) and where the frame numbers start in ``text[:end]`` (str, or ASCII bytes: the same offsets).
 
     The header ends after whichever of the "Frames:" and "Frame Time:" lines comes last.
     Lines are counted on "\n" alone (CRLF ends with it too), the same count the motion
@@ -181,8 +191,8 @@ def _head_end(
         time_line = frame_time.search(text, found.end(), end)
         frames_line = frames.search(text, found.end(), end)
         if time_line and frames_line:
-            return max(time_line.end(), frames_line.end())
-    return end
+            return found.start(), max(time_line.end(), frames_line.end())
+    return None, end
 
 
 def _text(path: Path) -> str:
@@ -199,6 +209,48 @@ def _raw(path: Path) -> bytes:
         # Classic Mac line endings (lone CR), still written by some old exporters.
         raw = raw.replace(b"\r", b"\n")
     return raw
+
+
+# Hierarchies already parsed, by the text above their MOTION line: a library's takes share a few
+# rigs, and walking a 19-joint hierarchy line by line cost a tenth of reading a 0.46 MB take.
+_HIERARCHIES: dict[str, tuple[BvhJoint, ...]] = {}
+_HIERARCHIES_SIZE = 256
+
+
+def _parse_header_remembered(text: str, motion_at: int | None, path: Path) -> BvhHeader:
+    """`parse_header` of ``text`` (everything up to the first frame), the hierarchy remembered.
+
+    ``motion_at`` is where the first line that is MOTION alone starts (`_head_bounds`), or None.
+
+    The hierarchy part of `parse_header` reads the lines up to the first MOTION line and nothing
+    else, so a text whose lines above that MOTION line are the same as an earlier file's has the
+    same joints; only its MOTION header (frames, frame time: its own errors and line numbers) is
+    parsed again. Only a hierarchy that parsed without error is remembered, and its joints are
+    copied each time (a writer appends to the list it gets).
+    """
+    lines = text.split("\n")
+    if motion_at is None:
+        return parse_header(lines, path)
+    hierarchy = text[:motion_at]  # the regex's `^` anchors its match at the start of that line
+    motion_index = hierarchy.count("\n")  # 0-based index of the MOTION line
+    joints = _HIERARCHIES.get(hierarchy)
+    if joints is None:
+        header = parse_header(lines, path)
+        # Remembered only when parsing stopped at that same line (a stray "MOTION x" line above
+        # it, which the regex skips, would have stopped it earlier: such a file is parsed anew).
+        if header.motion_line == motion_index + 1:
+            if len(_HIERARCHIES) >= _HIERARCHIES_SIZE:
+                _HIERARCHIES.clear()
+            _HIERARCHIES[hierarchy] = tuple(_copy_joint(j) for j in header.joints)
+        return header
+    header = BvhHeader(joints=[_copy_joint(j) for j in joints], motion_line=motion_index + 1)
+    _motion_header(lines, motion_index + 1, header, path)
+    return header
+
+
+def _copy_joint(joint: BvhJoint) -> BvhJoint:
+    # Its fields are immutable values; the constructor is 5x faster than `copy.copy` here.
+    return BvhJoint(joint.name, joint.parent, joint.offset, joint.channels, joint.line, joint.end_site)
 
 
 def parse_header(lines: list[str], path: Path) -> BvhHeader:
@@ -470,31 +522,71 @@ def _motion_arrow(
     if trailing and end < len(block) and block[end] == ord(delimiter):
         end += 1
     block = block[:end]
-    names = [f"c{index}" for index in range(channels + trailing)]
-    types = {name: pa.float64() for name in names[:channels]}
-    if trailing:
-        types[names[-1]] = pa.string()  # the field after the last delimiter: must be empty
+    read_options, parse_options, convert_options = _arrow_options(csv, channels, trailing, delimiter)
     try:
         table: Table = csv.read_csv(
             pa.py_buffer(block),
-            read_options=csv.ReadOptions(
-                use_threads=False, column_names=names, block_size=min(len(block) + 1, 2**31 - 1)
-            ),
-            parse_options=csv.ParseOptions(delimiter=delimiter, quote_char=False),
-            # No null spellings: an empty field is an error, "nan" a NaN (caught below).
-            convert_options=csv.ConvertOptions(column_types=types, null_values=[]),
+            read_options=read_options,
+            parse_options=parse_options,
+            convert_options=convert_options,
         )
     except (pa.ArrowException, ValueError):
         return None
-    if table.num_rows != frames or table.num_columns != len(names):
+    if table.num_rows != frames or table.num_columns != channels + trailing:
         return None
-    if trailing and not all(_all_empty(chunk) for chunk in table.column(channels).chunks):
-        return None  # a value after what the first line left empty: one value too many
+    if trailing:
+        if not all(_all_empty(chunk) for chunk in table.column(channels).chunks):
+            return None  # a value after what the first line left empty: one value too many
+        table = table.select(range(channels))
+    by_channel = _channel_major(table, channels, frames)
+    # Finite when every channel's extremes are: a NaN propagates into both, an inf into one.
+    if not (np.isfinite(by_channel.max(axis=1)).all() and np.isfinite(by_channel.min(axis=1)).all()):
+        return None  # the slow path names the line with the NaN or inf
+    return by_channel
+
+
+# Option objects per (channels, trailing delimiter, delimiter): a library's takes share a few
+# layouts. The block size is the largest pyarrow takes, so the whole block is one chunk.
+_ARROW_OPTIONS: dict[tuple[int, bool, str], tuple[Any, Any, Any]] = {}
+_ARROW_BLOCK = 2**31 - 1
+
+
+def _arrow_options(csv: ModuleType, channels: int, trailing: bool, delimiter: str) -> tuple[Any, Any, Any]:
+    key = (channels, trailing, delimiter)
+    found = _ARROW_OPTIONS.get(key)
+    if found is None:
+        import pyarrow as pa
+
+        names = [f"c{index}" for index in range(channels + trailing)]
+        types = {name: pa.float64() for name in names[:channels]}
+        if trailing:
+            types[names[-1]] = pa.string()  # the field after the last delimiter: must be empty
+        found = (
+            csv.ReadOptions(use_threads=False, column_names=names, block_size=_ARROW_BLOCK),
+            csv.ParseOptions(delimiter=delimiter, quote_char=False),
+            # No null spellings: an empty field is an error, "nan" a NaN (caught by the caller).
+            csv.ConvertOptions(column_types=types, null_values=[]),
+        )
+        if len(_ARROW_OPTIONS) >= 64:
+            _ARROW_OPTIONS.clear()
+        _ARROW_OPTIONS[key] = found
+    return found
+
+
+def _channel_major(table: Table, channels: int, frames: int) -> FloatArray:
+    """The (channels, frames) array of a table of ``channels`` float64 columns without nulls.
+
+    One column-major tensor copy when the table is one record batch (pyarrow >= 16), the same
+    values as copying the columns one by one (the fallback), at a fraction of the calls."""
+    batches = table.to_batches()
+    if len(batches) == 1 and hasattr(batches[0], "to_tensor"):
+        # (frames, channels) in column-major order: its transpose is C-contiguous, row r channel r.
+        values = np.asarray(batches[0].to_tensor(row_major=False)).T
+        if values.shape == (channels, frames) and values.flags.c_contiguous:
+            return np.asarray(values, dtype=np.float64)
     by_channel = np.empty((channels, frames))
     for index in range(channels):
         by_channel[index] = table.column(index).to_numpy()
-    if not np.isfinite(by_channel).all():
-        return None  # the slow path names the line with the NaN or inf
     return by_channel
 
 
@@ -616,7 +708,9 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
     # A channel that never moves (a rig's fingers, a mocap knee's twist: 50 of a procedural walk's
     # 60 channels, a quarter of a CMU take's) is converted once; so is a joint none of whose
     # channels moves, its quaternion repeated on every frame.
-    still = (by_channel == by_channel[:, :1]).all(axis=1)
+    # Equal extremes: every value the same (the values are finite; 0.0 and -0.0 count as equal,
+    # as they do for ==). Two reductions along the rows, no (channels, frames) comparison array.
+    still = by_channel.max(axis=1) == by_channel.min(axis=1)
     for order, members in by_order.items():
         indices = np.array([m[0] for m in members])
         if not order:
@@ -626,7 +720,7 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
         fixed = still[columns].all(axis=0)
         if fixed.any():
             first = by_channel[columns[:, fixed], :1]  # (letters, joints, 1)
-            rotations[:, indices[fixed]] = euler_quaternions(first, order)[..., 0].T
+            rotations[:, indices[fixed]] = _still_quaternions(first, order)
         if not fixed.all():
             # (letters, joints, frames), contiguous: one block of angles per letter of the order.
             angles = by_channel[columns[:, ~fixed]]
@@ -645,6 +739,26 @@ def _clip(path: Path, header: BvhHeader, by_channel: FloatArray) -> Clip:
         translations=translations,
         fps=1.0 / header.frame_time,
     )
+
+
+# Quaternions of still joints by their angles: a library's takes of one rig hold the same angles
+# on the joints that never move (a procedural walk: 15 of 19 joints), and converting them cost
+# as much as converting the moving ones (a few dozen numpy calls on tiny arrays).
+_STILL: dict[tuple[str, tuple[int, ...], bytes], FloatArray] = {}
+_STILL_SIZE = 1024
+
+
+def _still_quaternions(first: FloatArray, order: str) -> FloatArray:
+    """(joints, 4): `euler_quaternions` of ``first`` (letters, joints, 1), remembered by its bytes."""
+    key = (order, first.shape, first.tobytes())
+    found = _STILL.get(key)
+    if found is None:
+        found = np.ascontiguousarray(euler_quaternions(first, order)[..., 0].T)
+        found.flags.writeable = False  # shared between clips
+        if len(_STILL) >= _STILL_SIZE:
+            _STILL.clear()
+        _STILL[key] = found
+    return found
 
 
 def euler_quaternions(angles_deg: FloatArray, order: str) -> FloatArray:
