@@ -1,4 +1,4 @@
-"""The measuring workers' allocator settings (`measure_stage._worker_init`): glibc keeps freed
+"""The measuring workers' allocator settings (`measure_stage.keep_freed_memory`): glibc keeps freed
 clip-sized blocks for the next clip instead of returning them to the kernel; elsewhere nothing
 happens and nothing fails."""
 
@@ -19,8 +19,8 @@ from blendspace_pipeline.pipeline import measure_stage
 _PROBE = """
 import resource, sys
 if sys.argv[1] == "init":
-    from blendspace_pipeline.pipeline.measure_stage import _worker_init
-    _worker_init()
+    from blendspace_pipeline.pipeline.measure_stage import keep_freed_memory
+    keep_freed_memory()
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
@@ -56,7 +56,7 @@ def test_elsewhere_it_does_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(sys, "platform", "darwin")
     monkeypatch.setattr(ctypes, "CDLL", no_library)
-    measure_stage._worker_init()
+    measure_stage.keep_freed_memory()
 
 
 def test_a_libc_without_mallopt_is_no_error(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -66,6 +66,6 @@ def test_a_libc_without_mallopt_is_no_error(monkeypatch: pytest.MonkeyPatch) -> 
 
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.setattr(ctypes, "CDLL", lambda *_args: Musl())
-    measure_stage._worker_init()
+    measure_stage.keep_freed_memory()
     monkeypatch.setattr(ctypes, "CDLL", lambda *_args: (_ for _ in ()).throw(OSError("no libc")))
-    measure_stage._worker_init()
+    measure_stage.keep_freed_memory()

@@ -205,7 +205,7 @@ def _run(jobs: int, job_list: list[Job]) -> Iterator[Keyed]:
     if jobs > 1 and len(job_list) > 1:
         # Chunks keep the per-task overhead small; workers return digests and measurements only.
         chunk = max(1, min(16, len(job_list) // (4 * jobs)))
-        with ProcessPoolExecutor(max_workers=min(jobs, len(job_list)), initializer=_worker_init) as pool:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(job_list)), initializer=keep_freed_memory) as pool:
             yield from pool.map(_measure_job, job_list, chunksize=chunk)
     else:
         yield from map(_measure_job, job_list)
@@ -219,8 +219,9 @@ _TRIM_THRESHOLD = 128 * 1024 * 1024
 _TOP_PAD = 16 * 1024 * 1024
 
 
-def _worker_init() -> None:
-    """Keep freed memory in a measuring worker's heap (glibc only; elsewhere nothing happens).
+def keep_freed_memory() -> None:
+    """Keep freed memory in this process's heap: a measuring worker's, or the build server's (glibc only;
+    elsewhere nothing happens).
 
     By default glibc hands every block of 128 kB and more (a clip's file, its rotations, its
     forward kinematics...) straight back to the kernel when freed, and trims the heap's top, so

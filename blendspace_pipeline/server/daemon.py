@@ -306,6 +306,11 @@ def _flush() -> None:
 def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
     """Preload, listen and answer until stopped; 0 on a clean stop."""
     _missing, imported_env = preload()
+    # Every forked command inherits the allocator settings of the measuring workers: a served
+    # `--jobs 1` build measures clips without a page fault per fresh page either.
+    from blendspace_pipeline.pipeline.measure_stage import keep_freed_memory
+
+    keep_freed_memory()
     # Forked commands share the server's memory copy-on-write; the collector walking every object
     # would copy all of it into each command (tens of ms here). Frozen objects are never walked.
     gc.collect()
