@@ -59,6 +59,7 @@ from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.cache import cache_dir, file_sha256, write_atomic
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
+from blendspace_pipeline.pipeline.forked import run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
@@ -338,6 +339,7 @@ def _write_outputs(
         text = document.model_dump_json(indent=2) + "\n"
         document_digest = hashlib.sha256(text.encode()).hexdigest()
         inputs_of: dict[str, str] = {}
+        tasks: list[tuple[str, Callable[[], None]]] = []
         for name in formats:
             suffix, writer = writers[name]
             file_name = f"{space.name}{suffix}"
@@ -349,13 +351,13 @@ def _write_outputs(
                 or known.get("inputs") != inputs
                 or not _reuse(home / CURRENT / file_name, known, target)
             ):
-                if name == "json":
-                    target.write_text(text, encoding="utf-8")  # the text digested above
-                else:
-                    writer(document, target)
-                verify_written(target)
+                tasks.append((name, functools.partial(_write_one, name, writer, document, text, target)))
             inputs_of[file_name] = inputs
             staged.append(Path(file_name))
+        # With --jobs N the writers run side by side in forked processes, longest first; a failure
+        # is raised as the serial order would have raised it (`forked.run_tasks`).
+        longest_first = sorted(range(len(tasks)), key=lambda i: _WRITER_ORDER.index(tasks[i][0]))
+        run_tasks([task for _, task in tasks], jobs, longest_first)
         generation = publish(staging, out_dir, safe_file_stem(space.name), staged)
         if generation is not None:
             _write_record(home, generation, inputs_of, previous)
@@ -366,6 +368,28 @@ def _write_outputs(
         raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+# The writers from the longest to the shortest (PNG ~1 s, HTML ~0.4 s, USD ~0.3 s on 1,000 clips):
+# in parallel, the longest starts first so the others fit beside it.
+_WRITER_ORDER = ("png", "html", "usd", "json")
+
+
+def _write_one(
+    name: str,
+    writer: Callable[[BlendSpaceDocument, Path], None],
+    document: BlendSpaceDocument,
+    text: str,
+    target: Path,
+) -> None:
+    """Write one output into the staging folder and check it is complete (in a forked writer
+    too: a USD refusal becomes the OSError the parent reports, whichever process hit it)."""
+    with _usd_errors_as_os_errors():
+        if name == "json":
+            target.write_text(text, encoding="utf-8")  # the text digested by the caller
+        else:
+            writer(document, target)
+        verify_written(target)
 
 
 STAGING_PREFIX = ".blendspace-staging-"
