@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.rules._geometry import distance
+from blendspace_pipeline.rules._geometry import NearPoints, distance
 
 from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
@@ -34,6 +34,7 @@ class MissingOpposite(Rule):
             return
         near = space.thresholds["too_close"]
         on_axis = space.thresholds["misalignment"]
+        others = NearPoints([other.normalised for other in space.samples], near)
         for sample in space.samples:
             mirrored = (sample.position[0] * signs[0], sample.position[1] * signs[1])
             target = space.to_normalised(mirrored)
@@ -41,7 +42,7 @@ class MissingOpposite(Rule):
                 continue  # on the mirror axis: it is its own opposite
             if not all(axis.contains(value) for axis, value in zip(space.axes, mirrored, strict=True)):
                 continue
-            if any(distance(other.normalised, target) < near for other in space.samples):
+            if others.any_closer(target):
                 continue
             yield self.report(
                 f"{sample.name} has no mirrored counterpart near ({mirrored[0]:.3g}, {mirrored[1]:.3g})",
