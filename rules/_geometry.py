@@ -55,41 +55,30 @@ def inside_rectangle(point: Point) -> bool:
     return -1e-9 <= point[0] <= 100.0 + 1e-9 and -1e-9 <= point[1] <= 100.0 + 1e-9
 
 
-class NearPoints:
-    """Points bucketed in square cells of side ``radius``: "is any point strictly closer than
-    ``radius``?" looks at the cells around the query only, with the very `distance` comparison a
-    scan of every point makes (so the same answer), instead of n comparisons per query.
+def any_closer_each(
+    points: Sequence[Sequence[float]], queries: Sequence[Sequence[float]], radius: float
+) -> list[bool]:
+    """For each query: is any of ``points`` strictly closer than ``radius``, by the very
+    `distance` comparison a scan of every point makes (so the same answers), without n
+    comparisons per query: a k-d tree proposes the points within a slightly larger radius and
+    only those are compared. A distance involving a non-finite coordinate is never below a finite
+    radius, so such points and queries need no comparison; an infinite radius is scanned."""
+    if not radius > 0.0:
+        return [False] * len(queries)  # no distance is below zero (or NaN)
+    if not math.isfinite(radius):
+        return [any(distance(other, query) < radius for other in points) for query in queries]
+    finite = [p for p in points if math.isfinite(p[0]) and math.isfinite(p[1])]
+    asked = [i for i, q in enumerate(queries) if math.isfinite(q[0]) and math.isfinite(q[1])]
+    answers = [False] * len(queries)
+    if not finite or not asked:
+        return answers
+    from scipy.spatial import cKDTree  # local import: scipy loads only when a rule asks
 
-    Cells two away are looked at too: a division rounded the wrong way never hides a neighbour.
-    Points that are not finite, and every query when ``radius`` is not a positive finite number,
-    fall back to the scan.
-    """
-
-    def __init__(self, points: Sequence[Sequence[float]], radius: float):
-        self.radius = radius
-        self.points = list(points)
-        self.bucketed = radius > 0.0 and math.isfinite(radius)
-        self.cells: dict[tuple[int, int], list[Sequence[float]]] = {}
-        self.loose: list[Sequence[float]] = []
-        if self.bucketed:
-            for point in self.points:
-                if math.isfinite(point[0]) and math.isfinite(point[1]):
-                    cell = (math.floor(point[0] / radius), math.floor(point[1] / radius))
-                    self.cells.setdefault(cell, []).append(point)
-                else:
-                    self.loose.append(point)
-
-    def any_closer(self, point: Sequence[float]) -> bool:
-        radius = self.radius
-        if not (self.bucketed and math.isfinite(point[0]) and math.isfinite(point[1])):
-            return any(distance(other, point) < radius for other in self.points)
-        cx, cy = math.floor(point[0] / radius), math.floor(point[1] / radius)
-        for dx in range(-2, 3):
-            for dy in range(-2, 3):
-                for other in self.cells.get((cx + dx, cy + dy), ()):
-                    if distance(other, point) < radius:
-                        return True
-        return any(distance(other, point) < radius for other in self.loose)
+    tree = cKDTree(np.asarray(finite, dtype=np.float64).reshape(-1, 2))
+    where = np.asarray([queries[i] for i in asked], dtype=np.float64).reshape(-1, 2)
+    for i, candidates in zip(asked, tree.query_ball_point(where, radius * (1.0 + 1e-6)), strict=True):
+        answers[i] = any(distance(finite[j], queries[i]) < radius for j in sorted(candidates))
+    return answers
 
 
 def smallest_angles(corners: Any) -> Any:

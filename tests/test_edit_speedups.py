@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from blendspace_pipeline.pipeline.stamp import FileState, _as_dict, file_state
@@ -60,3 +62,24 @@ def test_stamp_file_states_serialise_as_asdict(tmp_path: Path) -> None:
     for state in (file_state(tmp_path / "a.bvh"), file_state(tmp_path), file_state(tmp_path / "gone")):
         assert json.dumps(_as_dict(state)) == json.dumps(dataclasses.asdict(state))
     assert list(_as_dict(FileState("p", 1, 2, "h"))) == [f.name for f in dataclasses.fields(FileState)]
+
+
+def test_snap_rounds_as_numpy_did() -> None:
+    from blendspace_pipeline.space.placement import Axis
+
+    def numpy_snap(axis: Axis, value: float) -> float:
+        index = np.round((value - axis.minimum) / axis.step)
+        return round(float(axis.minimum + index * axis.step), 9) + 0.0
+
+    rng = np.random.default_rng(2)
+    axes = [
+        Axis("x", "speed", 0.0, 5.0, 20),
+        Axis("x", "turn_rate", -180.0, 180.0, 8),
+        Axis("y", "d", -0.0, 1.0, 3),
+    ]
+    halves = [axis.minimum + (k + 0.5) * axis.step for axis in axes for k in range(-3, 25)]  # ties
+    values = halves + rng.uniform(-400, 400, 2000).tolist() + [0.0, -0.0, 1e300, -1e300, math.inf, -math.inf]
+    for axis in axes:
+        for value in values:
+            assert repr(axis.snap(value)) == repr(numpy_snap(axis, value)), (axis, value)
+        assert math.isnan(axis.snap(math.nan))

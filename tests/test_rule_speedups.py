@@ -1,4 +1,4 @@
-"""The faster built-in rule internals answer exactly as the scans they replace: `NearPoints`
+"""The faster built-in rule internals answer exactly as the scans they replace: `any_closer_each`
 (missing-opposite's "any sample near the mirrored position") and `smallest_angles`
 (acute-triangle's filter before the exact per-triangle angles)."""
 
@@ -8,7 +8,13 @@ import math
 
 import numpy as np
 import pytest
-from blendspace_pipeline.rules._geometry import ANGLE_MARGIN, NearPoints, angles, distance, smallest_angles
+from blendspace_pipeline.rules._geometry import (
+    ANGLE_MARGIN,
+    angles,
+    any_closer_each,
+    distance,
+    smallest_angles,
+)
 
 
 @pytest.mark.parametrize("radius", [0.0, -1.0, 1e-9, 0.7, 5.0, 30.0, math.inf, math.nan])
@@ -23,14 +29,13 @@ def test_near_points_answers_as_the_scan(radius: float) -> None:
         (math.inf, 2.0),
         (5.0 + radius, 5.0) if math.isfinite(radius) else (1.0, 1.0),
     ]
-    index = NearPoints(points, radius)
-    for query in queries:
-        assert index.any_closer(query) == any(distance(p, query) < radius for p in points), query
+    answers = any_closer_each(points, queries, radius)
+    for query, answer in zip(queries, answers, strict=True):
+        assert answer == any(distance(p, query) < radius for p in points), query
 
 
 def test_near_points_at_exactly_the_radius_is_not_closer() -> None:
-    index = NearPoints([(10.0, 10.0)], 3.0)
-    assert not index.any_closer((13.0, 10.0)) and index.any_closer((12.999999, 10.0))
+    assert any_closer_each([(10.0, 10.0)], [(13.0, 10.0), (12.999999, 10.0)], 3.0) == [False, True]
 
 
 def test_smallest_angles_never_drops_a_triangle_the_exact_angle_keeps() -> None:

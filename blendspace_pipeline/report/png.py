@@ -69,7 +69,12 @@ def render(doc: BlendSpaceDocument) -> oiio.ImageBuf:
     _draw_titles(canvas, scene, doc)
     _draw_legend(canvas, scene)
     # The box filter as a mean of SCALE x SCALE blocks, in numpy.
-    mean = sum(canvas[dy::SCALE, dx::SCALE] for dy in range(SCALE) for dx in range(SCALE)) / SCALE**2
+    # Summed in place in the order `sum()` adds them (the same float32 result, without a new
+    # full-size array per term).
+    mean = 0 + canvas[0::SCALE, 0::SCALE]
+    for dy, dx in [(dy, dx) for dy in range(SCALE) for dx in range(SCALE)][1:]:
+        mean += canvas[dy::SCALE, dx::SCALE]
+    mean /= SCALE**2
     small = oiio.ImageBuf(oiio.ImageSpec(PNG_LAYOUT.width, PNG_LAYOUT.height, 3, "float"))
     small.set_pixels(oiio.ROI(0, PNG_LAYOUT.width, 0, PNG_LAYOUT.height, 0, 1, 0, 3), mean)
     return small
@@ -107,9 +112,14 @@ HATCH_ALPHA = 0.45
 def _paint_areas(scene: Scene) -> Canvas:
     lay = scene.layout
     canvas = np.empty((lay.height, lay.width, 3), dtype=np.float32)
-    canvas[:] = _rgb("background")
     left, top = lay.left, lay.top
     right, bottom = int(lay.left + lay.plot_width), int(lay.top + lay.plot_height)
+    # The background around the plot, then the plot: each pixel is filled once.
+    background = _rgb("background")
+    canvas[:top] = background
+    canvas[bottom:] = background
+    canvas[top:bottom, :left] = background
+    canvas[top:bottom, right:] = background
     canvas[top:bottom, left:right] = _rgb("plot")
     # Shapes grouped by (kind, colour) in the order the findings list them.
     groups: dict[tuple[str, Colour], list[Problem]] = {}
