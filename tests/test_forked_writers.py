@@ -242,3 +242,63 @@ def test_more_tasks_than_jobs_all_run_and_start_in_the_given_order(tmp_path: Pat
     lines = [line.split() for line in log.read_text(encoding="utf-8").splitlines()]
     assert sorted(name for name, _ in lines) == ["0", "1", "2", "3", "4"]
     assert len({pid for _, pid in lines}) == 5 and str(os.getpid()) not in {pid for _, pid in lines}
+
+
+def test_the_outputs_written_beside_the_foot_skate_map_do_not_show_it(tmp_path: Path) -> None:
+    """PNG and USD start before the blend quality is known (`outputs._WITHOUT_BLEND_QUALITY`):
+    their bytes must be the same without it."""
+    from blendspace_pipeline.pipeline import outputs
+    from blendspace_pipeline.pipeline.outputs import build
+    from blendspace_pipeline.report import write_png
+    from blendspace_pipeline.writers.usd_blendspace import usda_text
+
+    assert {"png", "usd"} == outputs._WITHOUT_BLEND_QUALITY
+    document = build(_project(tmp_path / "p"), tmp_path / "out").document
+    assert document.blend_quality is not None
+    blind = document.model_copy(update={"blend_quality": None})
+    assert usda_text(document) == usda_text(blind)
+    write_png(document, tmp_path / "with.png")
+    write_png(blind, tmp_path / "without.png")
+    assert (tmp_path / "with.png").read_bytes() == (tmp_path / "without.png").read_bytes()
+
+
+def test_a_failing_foot_skate_map_stops_the_writers_already_started(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The PNG and USD children run while the map is computed; the map's error is the build's
+    (as serially, where no writer had started), and no child writes on into a removed folder."""
+    out = tmp_path / "out"
+    manifest = _project(tmp_path / "p")
+    assert _build(manifest, out, capsys, 2)[0] in (0, 1)
+    before = _outputs(out)
+    from blendspace_pipeline import report
+    from blendspace_pipeline.pipeline import outputs
+
+    real = report.write_png
+    flag = tmp_path / "png-finished"
+
+    def slow(doc: object, path: Path) -> None:
+        import time
+
+        time.sleep(3)
+        real(doc, path)  # type: ignore[arg-type]
+        flag.write_text("x", encoding="utf-8")
+
+    def failing(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.EIO, os.strerror(errno.EIO), "the-map")
+
+    monkeypatch.setattr(report, "write_png", slow)
+    monkeypatch.setattr(outputs, "blend_quality", failing)
+    _project(tmp_path / "p", 50)
+    serial = _build(manifest, tmp_path / "serial-out", capsys, 1)
+    code, err = _build(manifest, out, capsys, 2)
+    assert (code, err.replace(str(out), "OUT")) == (
+        serial[0],
+        serial[1].replace(str(tmp_path / "serial-out"), "OUT"),
+    )
+    assert code == 2 and "Input/output error (the-map)" in err
+    assert _outputs(out) == before and not list(out.glob(".blendspace-staging-*"))
+    import time
+
+    time.sleep(3.5)
+    assert not flag.exists()  # the PNG child was stopped, not left writing

@@ -41,39 +41,70 @@ def run_tasks(tasks: Sequence[Task], jobs: int, start_order: Sequence[int] | Non
         for task in tasks:
             task()
         return
-    errors: dict[int, BaseException] = {}
-    running: dict[int, tuple[int, int, bytearray]] = {}  # read end -> (task index, pid, bytes read)
-    waiting = list(start_order) if start_order is not None else list(range(len(tasks)))
-    assert sorted(waiting) == list(range(len(tasks))), "start_order must name every task once"
-    try:
-        while waiting or running:
-            while waiting and len(running) < jobs:
-                index = waiting.pop(0)
-                read_end, pid = _start(tasks[index])
-                running[read_end] = (index, pid, bytearray())
-            ready, _, _ = select.select(list(running), [], [])
+    with Children(tasks, jobs, start_order) as children:
+        errors = children.wait()
+    if errors:
+        raise errors[min(errors)]
+
+
+class Children:
+    """``tasks`` in forked children, started at once (at most ``limit`` at a time; the others
+    start as running ones finish while `wait` waits). Leaving the ``with`` block kills and reaps
+    any child still running (the caller failed or was interrupted: none writes on)."""
+
+    def __init__(self, tasks: Sequence[Task], limit: int, start_order: Sequence[int] | None = None):
+        self.tasks = list(tasks)
+        self.limit = max(1, limit)
+        self.errors: dict[int, BaseException] = {}
+        self.running: dict[int, tuple[int, int, bytearray]] = {}  # read end -> (index, pid, bytes)
+        self.waiting = list(start_order) if start_order is not None else list(range(len(self.tasks)))
+        assert sorted(self.waiting) == list(range(len(self.tasks))), "start_order must name every task once"
+        try:
+            self._fill()
+        except BaseException:  # fork refused (EAGAIN): the children already started stop too
+            self.kill()
+            raise
+
+    def _fill(self) -> None:
+        while self.waiting and len(self.running) < self.limit:
+            index = self.waiting.pop(0)
+            read_end, pid = _start(self.tasks[index])
+            self.running[read_end] = (index, pid, bytearray())
+
+    def wait(self) -> dict[int, BaseException]:
+        """Wait for every task; their errors by task index (empty when all succeeded)."""
+        while self.waiting or self.running:
+            self._fill()
+            ready, _, _ = select.select(list(self.running), [], [])
             for read_end in ready:
-                index, pid, data = running[read_end]
+                index, pid, data = self.running[read_end]
                 chunk = os.read(read_end, 1 << 16)
                 if chunk:
                     data += chunk
                     continue
-                del running[read_end]  # end of file: the child is done
+                del self.running[read_end]  # end of file: the child is done
                 os.close(read_end)
                 error = _finish(pid, bytes(data))
                 if error is not None:
-                    errors[index] = error
-    finally:
-        # Interrupted (Ctrl-C) or failing here: no child outlives the call (nor writes on).
-        for read_end, (_, pid, _) in running.items():
+                    self.errors[index] = error
+        return self.errors
+
+    def kill(self) -> None:
+        self.waiting.clear()
+        for read_end, (_, pid, _) in self.running.items():
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
             with contextlib.suppress(OSError):
                 os.waitpid(pid, 0)
             with contextlib.suppress(OSError):
                 os.close(read_end)
-    if errors:
-        raise errors[min(errors)]
+        self.running.clear()
+
+    def __enter__(self) -> Children:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.kill()
 
 
 def _start(task: Task) -> tuple[int, int]:

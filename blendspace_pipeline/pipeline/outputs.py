@@ -59,7 +59,7 @@ from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.cache import cache_dir, file_sha256, write_atomic
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
-from blendspace_pipeline.pipeline.forked import run_tasks
+from blendspace_pipeline.pipeline.forked import Children, Task, can_fork, run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
@@ -311,53 +311,83 @@ def _write_outputs(
             if sample.generated:
                 sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}{source_suffix(sub)}"
     document = to_document(space, out_dir)
-    # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
-    document.blend_quality = blend_quality(
-        space,
-        document,
-        {n: g.clip for n, g in fixes.generated.items()},
-        sync=space.manifest.model.blend.sync,
-        jobs=jobs,
-    )
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
     try:
-        staged: list[Path] = []  # relative to staging (and to out_dir)
-        for sub, state, folder in made:
-            in_space = {s.name for s in sub.samples}
-            for name in sorted(state.generated):
-                if name in in_space:
-                    for path in write_generated_clip(sub, state.generated[name], staging / folder):
-                        staged.append(path.relative_to(staging))
-        for relative in staged:
-            verify_written(staging / relative)
         # Each document output is written only when what it is made of changed (`_output_inputs`);
         # otherwise the previous generation's file, checked to be the one written, is linked in.
         writers = _writers(space)
         home = out_dir / GENERATIONS / safe_file_stem(space.name)
         previous = _read_record(home)
-        text = document.model_dump_json(indent=2) + "\n"
-        document_digest = hashlib.sha256(text.encode()).hexdigest()
         inputs_of: dict[str, str] = {}
-        tasks: list[tuple[str, Callable[[], None]]] = []
-        for name in formats:
-            suffix, writer = writers[name]
-            file_name = f"{space.name}{suffix}"
-            target = staging / file_name
-            inputs = _output_inputs(name, file_name, document_digest, space)
-            known = previous.get(file_name)
-            if (
-                known is None
-                or known.get("inputs") != inputs
-                or not _reuse(home / CURRENT / file_name, known, target)
-            ):
-                tasks.append((name, functools.partial(_write_one, name, writer, document, text, target)))
-            inputs_of[file_name] = inputs
-            staged.append(Path(file_name))
-        # With --jobs N the writers run side by side in forked processes, longest first; a failure
-        # is raised as the serial order would have raised it (`forked.run_tasks`).
-        longest_first = sorted(range(len(tasks)), key=lambda i: _WRITER_ORDER.index(tasks[i][0]))
-        run_tasks([task for _, task in tasks], jobs, longest_first)
+        tasks: dict[str, Task] = {}
+
+        def plan(names: Sequence[str], text: str) -> list[str]:
+            """The outputs of ``names`` to write (the others are linked in from the previous
+            generation), each digested from the document ``text``."""
+            digest = hashlib.sha256(text.encode()).hexdigest()
+            to_write = []
+            for name in names:
+                suffix, writer = writers[name]
+                file_name = f"{space.name}{suffix}"
+                target = staging / file_name
+                inputs = _output_inputs(name, file_name, digest, space)
+                known = previous.get(file_name)
+                if (
+                    known is None
+                    or known.get("inputs") != inputs
+                    or not _reuse(home / CURRENT / file_name, known, target)
+                ):
+                    tasks[name] = functools.partial(_write_one, name, writer, document, text, target)
+                    to_write.append(name)
+                inputs_of[file_name] = inputs
+            return to_write
+
+        # With --jobs N the outputs that do not show the blend quality (the PNG, the longest, and
+        # the USD) start now in forked processes, beside the foot-skate map's; the others after it.
+        # Every writer's failure is raised as the serial order of `formats` would have raised it.
+        parallel = jobs > 1 and can_fork()
+        early = [name for name in formats if name in _WITHOUT_BLEND_QUALITY] if parallel else []
+        started = plan(early, document.model_dump_json(indent=2) + "\n") if early else []
+        with Children([tasks[name] for name in started], len(started)) as children:
+            # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
+            document.blend_quality = blend_quality(
+                space,
+                document,
+                {n: g.clip for n, g in fixes.generated.items()},
+                sync=space.manifest.model.blend.sync,
+                jobs=jobs,
+            )
+            staged: list[Path] = []  # relative to staging (and to out_dir)
+            for sub, state, folder in made:
+                in_space = {s.name for s in sub.samples}
+                for name in sorted(state.generated):
+                    if name in in_space:
+                        for path in write_generated_clip(sub, state.generated[name], staging / folder):
+                            staged.append(path.relative_to(staging))
+            for relative in staged:
+                verify_written(staging / relative)
+            late = plan(
+                [name for name in formats if name not in early], document.model_dump_json(indent=2) + "\n"
+            )
+            errors: dict[int, BaseException] = {}
+            if parallel and len(late) == 1:  # one writer left: here, without a fork
+                try:
+                    tasks[late[0]]()
+                except Exception as error:  # weighed against the forked writers' errors below
+                    errors[formats.index(late[0])] = error
+            elif parallel:
+                longest_first = sorted(late, key=_WRITER_ORDER.index)
+                with Children(
+                    [tasks[name] for name in late], jobs, [late.index(n) for n in longest_first]
+                ) as rest:
+                    errors |= {formats.index(late[i]): error for i, error in rest.wait().items()}
+            else:
+                run_tasks([tasks[name] for name in late], 1)
+            errors |= {formats.index(started[i]): error for i, error in children.wait().items()}
+        if errors:
+            raise errors[min(errors)]
+        staged += [Path(f"{space.name}{writers[name][0]}") for name in formats]
         generation = publish(staging, out_dir, safe_file_stem(space.name), staged)
         if generation is not None:
             _write_record(home, generation, inputs_of, previous)
@@ -370,6 +400,10 @@ def _write_outputs(
         shutil.rmtree(staging, ignore_errors=True)
 
 
+# Outputs that do not show the document's `blend_quality` (the HTML's engine section and the JSON
+# do): with --jobs N they are written while the foot-skate map is computed.
+# `tests/test_forked_writers.py` checks that their bytes do not depend on it.
+_WITHOUT_BLEND_QUALITY = frozenset({"png", "usd"})
 # The writers from the longest to the shortest (PNG ~1 s, HTML ~0.4 s, USD ~0.3 s on 1,000 clips):
 # in parallel, the longest starts first so the others fit beside it.
 _WRITER_ORDER = ("png", "html", "usd", "json")
