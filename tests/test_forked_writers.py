@@ -302,3 +302,17 @@ def test_a_failing_foot_skate_map_stops_the_writers_already_started(
 
     time.sleep(3.5)
     assert not flag.exists()  # the PNG child was stopped, not left writing
+
+
+def test_the_document_text_with_the_blend_quality_put_in_is_the_whole_dump(tmp_path: Path) -> None:
+    from blendspace_pipeline.pipeline.outputs import build, document_text
+
+    document = build(_project(tmp_path / "p"), tmp_path / "out", fix=False).document
+    assert document.blend_quality is not None
+    whole = document.model_dump_json(indent=2) + "\n"
+    blind = document.model_copy(update={"blend_quality": None})
+    blind_text = blind.model_dump_json(indent=2) + "\n"
+    assert document_text(document, blind_text) == whole
+    assert document_text(blind, blind_text) == blind_text
+    assert document_text(document) == whole
+    assert document_text(document, "not a document") == whole  # no field to fill: dumped whole

@@ -19,6 +19,7 @@ Without fork, with ``jobs`` 1, or with one task, the tasks run here in order, as
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 import pickle
 import select
@@ -118,6 +119,9 @@ def _start(task: Task) -> tuple[int, int]:
     if pid == 0:  # the child: never returns, never runs the parent's cleanup (`finally`, atexit)
         status = 1
         try:
+            # The inherited objects are the parent's: a collection here would walk (and so copy,
+            # page by page) the whole inherited heap; only what the task makes is collected.
+            gc.freeze()
             os.close(read_end)
             _die_with_parent(parent)
             payload = _result_of(task)

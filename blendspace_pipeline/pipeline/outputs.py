@@ -348,7 +348,8 @@ def _write_outputs(
         # Every writer's failure is raised as the serial order of `formats` would have raised it.
         parallel = jobs > 1 and can_fork()
         early = [name for name in formats if name in _WITHOUT_BLEND_QUALITY] if parallel else []
-        started = plan(early, document.model_dump_json(indent=2) + "\n") if early else []
+        blind_text = document.model_dump_json(indent=2) + "\n" if early else None
+        started = plan(early, blind_text) if blind_text is not None else []
         with Children([tasks[name] for name in started], len(started)) as children:
             # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
             document.blend_quality = blend_quality(
@@ -367,9 +368,7 @@ def _write_outputs(
                             staged.append(path.relative_to(staging))
             for relative in staged:
                 verify_written(staging / relative)
-            late = plan(
-                [name for name in formats if name not in early], document.model_dump_json(indent=2) + "\n"
-            )
+            late = plan([name for name in formats if name not in early], document_text(document, blind_text))
             errors: dict[int, BaseException] = {}
             if parallel and len(late) == 1:  # one writer left: here, without a fork
                 try:
@@ -398,6 +397,24 @@ def _write_outputs(
         raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+_QUALITY_FIELD = '\n  "blend_quality": null,\n'
+
+
+def document_text(document: BlendSpaceDocument, blind_text: str | None = None) -> str:
+    """``document`` as indented JSON (what the JSON output holds and every output is digested
+    from). ``blind_text``: the same document dumped before its blend quality was set; then only
+    the blend quality is dumped and put in its place (a 1,000-clip document is not dumped twice).
+    Nested objects are indented two more spaces at the top level; a JSON string holds no raw
+    newline, so indenting after every newline is exact (tested equal to the whole dump)."""
+    quality = document.blend_quality
+    if blind_text is None or blind_text.count(_QUALITY_FIELD) != 1:
+        return document.model_dump_json(indent=2) + "\n"
+    if quality is None:
+        return blind_text
+    nested = quality.model_dump_json(indent=2).replace("\n", "\n  ")
+    return blind_text.replace(_QUALITY_FIELD, f'\n  "blend_quality": {nested},\n')
 
 
 # Outputs that do not show the document's `blend_quality` (the HTML's engine section and the JSON
