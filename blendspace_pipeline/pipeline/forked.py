@@ -22,7 +22,7 @@ import contextlib
 import gc
 import os
 import pickle
-import select
+import selectors
 import signal
 import sys
 import traceback
@@ -76,7 +76,12 @@ class Children:
         """Wait for every task; their errors by task index (empty when all succeeded)."""
         while self.waiting or self.running:
             self._fill()
-            ready, _, _ = select.select(list(self.running), [], [])
+            # `selectors` (poll/epoll), not `select.select`: a long-lived process (a build server)
+            # may hold descriptors above select's 1024 limit.
+            with selectors.DefaultSelector() as selector:
+                for read_end in self.running:
+                    selector.register(read_end, selectors.EVENT_READ)
+                ready = [key.fd for key, _ in selector.select()]
             for read_end in ready:
                 index, pid, data = self.running[read_end]
                 chunk = os.read(read_end, 1 << 16)
