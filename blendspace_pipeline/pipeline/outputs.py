@@ -343,13 +343,17 @@ def _write_outputs(
                 inputs_of[file_name] = inputs
             return to_write
 
-        # With --jobs N the outputs that do not show the blend quality (the PNG, the longest, and
-        # the USD) start now in forked processes, beside the foot-skate map's; the others after it.
-        # Every writer's failure is raised as the serial order of `formats` would have raised it.
+        # With --jobs N this process is one writer and N - 1 forked processes are the others (a
+        # fork costs a copy of the page tables, so no more): the longest outputs that do not show
+        # the blend quality (the PNG first) start now, beside the foot-skate map; after it, free
+        # slots take the longest of the rest and this process writes what is left, in order.
+        # A failure is raised as the serial order of `formats` would have raised it.
         parallel = jobs > 1 and can_fork()
-        early = [name for name in formats if name in _WITHOUT_BLEND_QUALITY] if parallel else []
+        slots = jobs - 1 if parallel else 0
+        early = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)[:slots]
         blind_text = document.model_dump_json(indent=2) + "\n" if early else None
         started = plan(early, blind_text) if blind_text is not None else []
+        errors: dict[int, BaseException] = {}
         with Children([tasks[name] for name in started], len(started)) as children:
             # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
             document.blend_quality = blend_quality(
@@ -369,20 +373,17 @@ def _write_outputs(
             for relative in staged:
                 verify_written(staging / relative)
             late = plan([name for name in formats if name not in early], document_text(document, blind_text))
-            errors: dict[int, BaseException] = {}
-            if parallel and len(late) == 1:  # one writer left: here, without a fork
-                try:
-                    tasks[late[0]]()
-                except Exception as error:  # weighed against the forked writers' errors below
-                    errors[formats.index(late[0])] = error
-            elif parallel:
-                longest_first = sorted(late, key=_WRITER_ORDER.index)
-                with Children(
-                    [tasks[name] for name in late], jobs, [late.index(n) for n in longest_first]
-                ) as rest:
-                    errors |= {formats.index(late[i]): error for i, error in rest.wait().items()}
-            else:
-                run_tasks([tasks[name] for name in late], 1)
+            if not parallel:
+                run_tasks([tasks[name] for name in late], 1)  # in order, the first failure raised
+            forked = sorted(late, key=_WRITER_ORDER.index)[: max(0, slots - len(started))] if parallel else []
+            with Children([tasks[name] for name in forked], len(forked)) as rest:
+                for name in [name for name in late if name not in forked] if parallel else []:
+                    try:
+                        tasks[name]()
+                    except Exception as error:  # weighed against the forked writers' errors below
+                        errors[formats.index(name)] = error
+                        break  # a serial build would not have written the next ones either
+                errors |= {formats.index(forked[i]): error for i, error in rest.wait().items()}
             errors |= {formats.index(started[i]): error for i, error in children.wait().items()}
         if errors:
             raise errors[min(errors)]
