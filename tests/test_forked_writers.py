@@ -316,3 +316,32 @@ def test_the_document_text_with_the_blend_quality_put_in_is_the_whole_dump(tmp_p
     assert document_text(blind, blind_text) == blind_text
     assert document_text(document) == whole
     assert document_text(document, "not a document") == whole  # no field to fill: dumped whole
+
+
+def test_without_fork_jobs_2_writes_everything_here_in_order(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from blendspace_pipeline import report
+    from blendspace_pipeline.pipeline import outputs
+
+    order: list[tuple[str, int]] = []
+    real_png, real_html = report.write_png, report.write_html_report
+
+    def png(doc: object, path: Path) -> None:
+        order.append(("png", os.getpid()))
+        real_png(doc, path)  # type: ignore[arg-type]
+
+    def html(doc: object, path: Path, inputs: object = ()) -> None:
+        order.append(("html", os.getpid()))
+        real_html(doc, path, inputs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(report, "write_png", png)
+    monkeypatch.setattr(report, "write_html_report", html)
+    monkeypatch.setattr(outputs, "can_fork", lambda: False)  # as on Windows
+    manifest = _project(tmp_path / "p")
+    assert _build(manifest, tmp_path / "no-fork", capsys, 2)[0] in (0, 1)
+    assert order == [("html", os.getpid()), ("png", os.getpid())]  # the formats' order, here
+    monkeypatch.setattr(report, "write_png", real_png)
+    monkeypatch.setattr(report, "write_html_report", real_html)
+    assert _build(manifest, tmp_path / "serial", capsys, 1)[0] in (0, 1)
+    assert _outputs(tmp_path / "no-fork") == _outputs(tmp_path / "serial")
