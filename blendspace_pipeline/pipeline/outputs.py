@@ -419,7 +419,7 @@ def document_text(document: BlendSpaceDocument, blind_text: str | None = None) -
 
 
 # Outputs that do not show the document's `blend_quality` (the HTML's engine section and the JSON
-# do): with --jobs N they are written while the foot-skate map is computed.
+# do): with --jobs N they may be written (in forked processes) while the foot-skate map is computed.
 # `tests/test_forked_writers.py` checks that their bytes do not depend on it.
 _WITHOUT_BLEND_QUALITY = frozenset({"png", "usd"})
 # The writers from the longest to the shortest (PNG ~1 s, HTML ~0.4 s, USD ~0.3 s on 1,000 clips):
