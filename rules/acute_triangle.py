@@ -4,7 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.rules._geometry import angles, circumcenter, inside_rectangle
+import numpy as np
+from blendspace_pipeline.rules._geometry import (
+    ANGLE_MARGIN,
+    angles,
+    circumcenter,
+    inside_rectangle,
+    smallest_angles,
+)
 
 from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
@@ -25,7 +32,11 @@ class AcuteTriangle(Rule):
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
         limit = space.thresholds["acute_angle"]
-        for tri in space.triangles:
+        # Only triangles whose numpy angle is near or below the limit (or not a number) are
+        # measured exactly, in order: the findings of a loop over all of them.
+        rough = smallest_angles(space.normalised_positions[space.triangle_array])
+        for index in np.flatnonzero(~(rough >= limit + ANGLE_MARGIN)):
+            tri = space.triangles[index]
             corners = [space.samples[i].normalised for i in tri]
             tri_angles = angles(*corners)
             smallest = min(tri_angles)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from blendspace_pipeline.rules._geometry import distance
+from blendspace_pipeline.rules._geometry import any_closer_each, distance
 
 from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
@@ -34,14 +34,16 @@ class MissingOpposite(Rule):
             return
         near = space.thresholds["too_close"]
         on_axis = space.thresholds["misalignment"]
-        for sample in space.samples:
-            mirrored = (sample.position[0] * signs[0], sample.position[1] * signs[1])
-            target = space.to_normalised(mirrored)
+        mirrors = [(s.position[0] * signs[0], s.position[1] * signs[1]) for s in space.samples]
+        targets = [space.to_normalised(mirrored) for mirrored in mirrors]
+        # Whether some sample lies near each mirrored position, all at once (k-d tree, exact).
+        taken = any_closer_each([other.normalised for other in space.samples], targets, near)
+        for sample, mirrored, target, near_one in zip(space.samples, mirrors, targets, taken, strict=True):
             if distance(target, sample.normalised) <= 2.0 * on_axis:
                 continue  # on the mirror axis: it is its own opposite
             if not all(axis.contains(value) for axis, value in zip(space.axes, mirrored, strict=True)):
                 continue
-            if any(distance(other.normalised, target) < near for other in space.samples):
+            if near_one:
                 continue
             yield self.report(
                 f"{sample.name} has no mirrored counterpart near ({mirrored[0]:.3g}, {mirrored[1]:.3g})",

@@ -47,7 +47,7 @@ def resolve_clip_files(
     """
     entries = loaded.model.clips if entries is None else entries
     matched = [_files_of(loaded, entry, (*key, index)) for index, entry in enumerate(entries)]
-    folders: dict[Path, Path] = {}
+    folders: dict[str, Path] = {}
     identities = [[_identity(file, folders) for file in files] for files in matched]
     globbed = [_is_glob(loaded, entry) for entry in entries]
     owners = _owners(identities, globbed)
@@ -75,17 +75,21 @@ def _owners(identities: list[list[Path]], globbed: list[bool]) -> dict[Path, int
     return owners
 
 
-def _identity(path: Path, folders: dict[Path, Path]) -> Path:
+def _identity(path: Path, folders: dict[str, Path]) -> Path:
     """The file's real path: two spellings of one file (a symlink, `a/../b`) are one clip.
 
-    A glob's files share a folder, so the folder is resolved once (``folders`` remembers it) and
-    each file costs one `lstat`; resolving every path walks every folder above it, per file.
+    A glob's files share a folder, so the folder is resolved once (``folders`` remembers it, by
+    its text: no Path is made per file to look it up) and each file costs one `lstat`; resolving
+    every path walks every folder above it, per file.
     """
-    if path.is_symlink():
+    text = str(path)
+    if os.path.islink(text):
         return path.resolve()
-    if path.parent not in folders:
-        folders[path.parent] = path.parent.resolve()
-    return folders[path.parent] / path.name
+    folder, name = os.path.split(text)
+    real = folders.get(folder)
+    if real is None:
+        real = folders[folder] = path.parent.resolve()
+    return real / name
 
 
 def _pattern(entry: ClipEntry) -> str:
@@ -167,8 +171,11 @@ def _glob(loaded: LoadedManifest, text: str, key: KeyPath) -> list[Path]:
     elif "**" in pattern:
         found = _walk_glob(loaded, root, pattern, key)
     else:
-        found = [Path(os.path.normpath(root / name)) for name in glob.glob(pattern, root_dir=root)]
-    files = sorted((p for p in found if _safe_is_file(p)), key=lambda p: p.as_posix())
+        base = str(root)  # joined as text: one Path per file, not three
+        found = [
+            Path(os.path.normpath(os.path.join(base, name))) for name in glob.glob(pattern, root_dir=root)
+        ]
+    files = sorted((p for p in found if os.path.isfile(p)), key=lambda p: p.as_posix())
     if len(files) > MAX_CLIP_FILES:
         _fail(
             loaded,

@@ -59,6 +59,7 @@ from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.cache import cache_dir, file_sha256, write_atomic
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
+from blendspace_pipeline.pipeline.forked import Children, Task, can_fork, run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
@@ -310,52 +311,83 @@ def _write_outputs(
             if sample.generated:
                 sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}{source_suffix(sub)}"
     document = to_document(space, out_dir)
-    # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
-    document.blend_quality = blend_quality(
-        space,
-        document,
-        {n: g.clip for n, g in fixes.generated.items()},
-        sync=space.manifest.model.blend.sync,
-        jobs=jobs,
-    )
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
     try:
-        staged: list[Path] = []  # relative to staging (and to out_dir)
-        for sub, state, folder in made:
-            in_space = {s.name for s in sub.samples}
-            for name in sorted(state.generated):
-                if name in in_space:
-                    for path in write_generated_clip(sub, state.generated[name], staging / folder):
-                        staged.append(path.relative_to(staging))
-        for relative in staged:
-            verify_written(staging / relative)
         # Each document output is written only when what it is made of changed (`_output_inputs`);
         # otherwise the previous generation's file, checked to be the one written, is linked in.
         writers = _writers(space)
         home = out_dir / GENERATIONS / safe_file_stem(space.name)
         previous = _read_record(home)
-        text = document.model_dump_json(indent=2) + "\n"
-        document_digest = hashlib.sha256(text.encode()).hexdigest()
         inputs_of: dict[str, str] = {}
-        for name in formats:
-            suffix, writer = writers[name]
-            file_name = f"{space.name}{suffix}"
-            target = staging / file_name
-            inputs = _output_inputs(name, file_name, document_digest, space)
-            known = previous.get(file_name)
-            if (
-                known is None
-                or known.get("inputs") != inputs
-                or not _reuse(home / CURRENT / file_name, known, target)
-            ):
-                if name == "json":
-                    target.write_text(text, encoding="utf-8")  # the text digested above
-                else:
-                    writer(document, target)
-                verify_written(target)
-            inputs_of[file_name] = inputs
-            staged.append(Path(file_name))
+        tasks: dict[str, Task] = {}
+
+        def plan(names: Sequence[str], text: str) -> list[str]:
+            """The outputs of ``names`` to write (the others are linked in from the previous
+            generation), each digested from the document ``text``."""
+            digest = hashlib.sha256(text.encode()).hexdigest()
+            to_write = []
+            for name in names:
+                suffix, writer = writers[name]
+                file_name = f"{space.name}{suffix}"
+                target = staging / file_name
+                inputs = _output_inputs(name, file_name, digest, space)
+                known = previous.get(file_name)
+                if (
+                    known is None
+                    or known.get("inputs") != inputs
+                    or not _reuse(home / CURRENT / file_name, known, target)
+                ):
+                    tasks[name] = functools.partial(_write_one, name, writer, document, text, target)
+                    to_write.append(name)
+                inputs_of[file_name] = inputs
+            return to_write
+
+        # With --jobs N this process is one writer and N - 1 forked processes are the others (a
+        # fork costs a copy of the page tables, so no more): the longest outputs that do not show
+        # the blend quality (the PNG first) start now, beside the foot-skate map; after it, free
+        # slots take the longest of the rest and this process writes what is left, in order.
+        # A failure is raised as the serial order of `formats` would have raised it.
+        parallel = jobs > 1 and can_fork()
+        slots = jobs - 1 if parallel else 0
+        early = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)[:slots]
+        blind_text = document.model_dump_json(indent=2) + "\n" if early else None
+        started = plan(early, blind_text) if blind_text is not None else []
+        errors: dict[int, BaseException] = {}
+        with Children([tasks[name] for name in started], len(started)) as children:
+            # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
+            document.blend_quality = blend_quality(
+                space,
+                document,
+                {n: g.clip for n, g in fixes.generated.items()},
+                sync=space.manifest.model.blend.sync,
+                jobs=jobs,
+            )
+            staged: list[Path] = []  # relative to staging (and to out_dir)
+            for sub, state, folder in made:
+                in_space = {s.name for s in sub.samples}
+                for name in sorted(state.generated):
+                    if name in in_space:
+                        for path in write_generated_clip(sub, state.generated[name], staging / folder):
+                            staged.append(path.relative_to(staging))
+            for relative in staged:
+                verify_written(staging / relative)
+            late = plan([name for name in formats if name not in early], document_text(document, blind_text))
+            if not parallel:
+                run_tasks([tasks[name] for name in late], 1)  # in order, the first failure raised
+            forked = sorted(late, key=_WRITER_ORDER.index)[: max(0, slots - len(started))] if parallel else []
+            with Children([tasks[name] for name in forked], len(forked)) as rest:
+                for name in [name for name in late if name not in forked] if parallel else []:
+                    try:
+                        tasks[name]()
+                    except Exception as error:  # weighed against the forked writers' errors below
+                        errors[formats.index(name)] = error
+                        break  # a serial build would not have written the next ones either
+                errors |= {formats.index(forked[i]): error for i, error in rest.wait().items()}
+            errors |= {formats.index(started[i]): error for i, error in children.wait().items()}
+        if errors:
+            raise errors[min(errors)]
+        staged += [Path(f"{space.name}{writers[name][0]}") for name in formats]
         generation = publish(staging, out_dir, safe_file_stem(space.name), staged)
         if generation is not None:
             _write_record(home, generation, inputs_of, previous)
@@ -366,6 +398,50 @@ def _write_outputs(
         raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+_QUALITY_FIELD = '\n  "blend_quality": null,\n'
+
+
+def document_text(document: BlendSpaceDocument, blind_text: str | None = None) -> str:
+    """``document`` as indented JSON (what the JSON output holds and every output is digested
+    from). ``blind_text``: the same document dumped before its blend quality was set; then only
+    the blend quality is dumped and put in its place (a 1,000-clip document is not dumped twice).
+    Nested objects are indented two more spaces at the top level; a JSON string holds no raw
+    newline, so indenting after every newline is exact (tested equal to the whole dump)."""
+    quality = document.blend_quality
+    if blind_text is None or blind_text.count(_QUALITY_FIELD) != 1:
+        return document.model_dump_json(indent=2) + "\n"
+    if quality is None:
+        return blind_text
+    nested = quality.model_dump_json(indent=2).replace("\n", "\n  ")
+    return blind_text.replace(_QUALITY_FIELD, f'\n  "blend_quality": {nested},\n')
+
+
+# Outputs that do not show the document's `blend_quality` (the HTML's engine section and the JSON
+# do): with --jobs N they may be written (in forked processes) while the foot-skate map is computed.
+# `tests/test_forked_writers.py` checks that their bytes do not depend on it.
+_WITHOUT_BLEND_QUALITY = frozenset({"png", "usd"})
+# The writers from the longest to the shortest (PNG ~1 s, HTML ~0.4 s, USD ~0.3 s on 1,000 clips):
+# in parallel, the longest starts first so the others fit beside it.
+_WRITER_ORDER = ("png", "html", "usd", "json")
+
+
+def _write_one(
+    name: str,
+    writer: Callable[[BlendSpaceDocument, Path], None],
+    document: BlendSpaceDocument,
+    text: str,
+    target: Path,
+) -> None:
+    """Write one output into the staging folder and check it is complete (in a forked writer
+    too: a USD refusal becomes the OSError the parent reports, whichever process hit it)."""
+    with _usd_errors_as_os_errors():
+        if name == "json":
+            target.write_text(text, encoding="utf-8")  # the text digested by the caller
+        else:
+            writer(document, target)
+        verify_written(target)
 
 
 STAGING_PREFIX = ".blendspace-staging-"

@@ -26,7 +26,7 @@ import os
 import stat
 import sys
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -141,12 +141,18 @@ def record(key: str, inputs: Iterable[Path], outputs: Iterable[Path], printed: s
     known = _previous_states(path)
     stamp = {
         "version": __version__,
-        "inputs": [asdict(file_state(p, known)) for p in [*input_paths, *folders]],
-        "outputs": [asdict(file_state(Path(p).absolute(), known)) for p in sorted(set(outputs))],
+        "inputs": [_as_dict(file_state(p, known)) for p in [*input_paths, *folders]],
+        "outputs": [_as_dict(file_state(Path(p).absolute(), known)) for p in sorted(set(outputs))],
         "stdout": printed,
         "exit_code": exit_code,
     }
     write_atomic(path, json.dumps(stamp))
+
+
+def _as_dict(state: FileState) -> dict[str, object]:
+    """`dataclasses.asdict` of a FileState (same keys, same order) without its deep copy: a
+    1,000-clip stamp spent a third of its time there."""
+    return {"path": state.path, "size": state.size, "mtime_ns": state.mtime_ns, "sha256": state.sha256}
 
 
 def _previous_states(path: Path) -> dict[str, FileState]:

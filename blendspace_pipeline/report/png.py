@@ -69,7 +69,12 @@ def render(doc: BlendSpaceDocument) -> oiio.ImageBuf:
     _draw_titles(canvas, scene, doc)
     _draw_legend(canvas, scene)
     # The box filter as a mean of SCALE x SCALE blocks, in numpy.
-    mean = sum(canvas[dy::SCALE, dx::SCALE] for dy in range(SCALE) for dx in range(SCALE)) / SCALE**2
+    # Summed in place in the order `sum()` adds them (the same float32 result, without a new
+    # full-size array per term).
+    mean = 0 + canvas[0::SCALE, 0::SCALE]
+    for dy, dx in [(dy, dx) for dy in range(SCALE) for dx in range(SCALE)][1:]:
+        mean += canvas[dy::SCALE, dx::SCALE]
+    mean /= SCALE**2
     small = oiio.ImageBuf(oiio.ImageSpec(PNG_LAYOUT.width, PNG_LAYOUT.height, 3, "float"))
     small.set_pixels(oiio.ROI(0, PNG_LAYOUT.width, 0, PNG_LAYOUT.height, 0, 1, 0, 3), mean)
     return small
@@ -107,9 +112,14 @@ HATCH_ALPHA = 0.45
 def _paint_areas(scene: Scene) -> Canvas:
     lay = scene.layout
     canvas = np.empty((lay.height, lay.width, 3), dtype=np.float32)
-    canvas[:] = _rgb("background")
     left, top = lay.left, lay.top
     right, bottom = int(lay.left + lay.plot_width), int(lay.top + lay.plot_height)
+    # The background around the plot, then the plot: each pixel is filled once.
+    background = _rgb("background")
+    canvas[:top] = background
+    canvas[bottom:] = background
+    canvas[top:bottom, :left] = background
+    canvas[top:bottom, right:] = background
     canvas[top:bottom, left:right] = _rgb("plot")
     # Shapes grouped by (kind, colour) in the order the findings list them.
     groups: dict[tuple[str, Colour], list[Problem]] = {}
@@ -297,6 +307,9 @@ def _hatch_outside(canvas: Canvas, hull: list[Point], box: tuple[int, int, int, 
         _mix(canvas, stripes, np.ones(len(stripes), dtype=np.int64), _rgb("uncovered-area"), HATCH_ALPHA)
 
 
+_PIXEL = np.dtype((np.void, 12))  # one RGB float32 pixel
+
+
 class _Pen:
     """Lines and filled markers rasterised straight into the numpy canvas, many at a time.
 
@@ -310,6 +323,9 @@ class _Pen:
     def __init__(self, canvas: Canvas):
         self.canvas = canvas
         self.height, self.width = canvas.shape[:2]
+        # The canvas as one 12-byte item per pixel: writing whole pixels by flat index is one
+        # scatter of items instead of three floats each (the same bytes land in the same place).
+        self.pixels = canvas.reshape(-1, 3).view(_PIXEL).reshape(-1) if canvas.flags.c_contiguous else None
 
     def lines(self, starts: FloatArray, ends: FloatArray, colour: Colour, width: float = 1.0) -> None:
         """Segments ``starts[i]`` -> ``ends[i]`` (pixels, (S, 2)), all in one colour."""
@@ -393,11 +409,19 @@ class _Pen:
         ]
         inside = (px >= 0) & (px < self.width) & (py >= 0) & (py < self.height)
         py, px, colours = py[inside], px[inside], colours[inside]
-        self.canvas[py, px] = colours
+        if self.pixels is not None:
+            self.pixels[py * self.width + px] = np.ascontiguousarray(colours).view(_PIXEL).reshape(-1)
+        else:
+            self.canvas[py, px] = colours
 
     def _paint(self, xs: np.ndarray, ys: np.ndarray, colour: Colour) -> None:
         keep = (xs >= 0) & (xs < self.width) & (ys >= 0) & (ys < self.height)
-        self.canvas.reshape(-1, 3)[ys[keep] * self.width + xs[keep]] = colour
+        if self.pixels is not None:
+            self.pixels[ys[keep] * self.width + xs[keep]] = np.asarray(colour, dtype=np.float32).view(_PIXEL)[
+                0
+            ]
+        else:
+            self.canvas.reshape(-1, 3)[ys[keep] * self.width + xs[keep]] = colour
 
 
 def _circle_segments(centres: FloatArray, radii: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -1,0 +1,198 @@
+"""Run independent tasks (the output writers) in forked processes, failing exactly as serial runs do.
+
+With ``jobs`` > 1 where `os.fork` exists, each task runs in a child forked from this process: it
+inherits the document and the space (nothing is pickled to it) and writes its own file. At most
+``jobs`` children run at once, started in ``start_order`` (the longest first).
+Every child is waited for before this returns or raises, so a caller that removes its staging
+folder on failure never races a child still writing into it.
+
+Failures reach the caller as if the tasks had run here one after another: when several fail, the
+error of the first failing task in the given order is raised (a serial run would have stopped
+there), as the same exception type with the same message (it is pickled back to the parent; one
+that cannot be is rebuilt as an exception of the same class name and text, so the CLI prints the
+same line). The child's traceback is attached as a note, so the crash log still shows where it
+failed. A child that dies without a word (a signal, the OOM killer) is an internal error.
+
+Without fork, with ``jobs`` 1, or with one task, the tasks run here in order, as before.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import os
+import pickle
+import selectors
+import signal
+import sys
+import traceback
+from collections.abc import Callable, Sequence
+
+Task = Callable[[], None]
+
+
+def can_fork() -> bool:
+    return hasattr(os, "fork") and sys.platform != "win32"
+
+
+def run_tasks(tasks: Sequence[Task], jobs: int, start_order: Sequence[int] | None = None) -> None:
+    """Run every task; raise the first failing task's error (in ``tasks`` order, the serial one).
+    ``start_order``: the indices of ``tasks`` in the order children start (longest first)."""
+    if jobs < 2 or len(tasks) < 2 or not can_fork():
+        for task in tasks:
+            task()
+        return
+    with Children(tasks, jobs, start_order) as children:
+        errors = children.wait()
+    if errors:
+        raise errors[min(errors)]
+
+
+class Children:
+    """``tasks`` in forked children, started at once (at most ``limit`` at a time; the others
+    start as running ones finish while `wait` waits). Leaving the ``with`` block kills and reaps
+    any child still running (the caller failed or was interrupted: none writes on)."""
+
+    def __init__(self, tasks: Sequence[Task], limit: int, start_order: Sequence[int] | None = None):
+        self.tasks = list(tasks)
+        self.limit = max(1, limit)
+        self.errors: dict[int, BaseException] = {}
+        self.running: dict[int, tuple[int, int, bytearray]] = {}  # read end -> (index, pid, bytes)
+        self.waiting = list(start_order) if start_order is not None else list(range(len(self.tasks)))
+        assert sorted(self.waiting) == list(range(len(self.tasks))), "start_order must name every task once"
+        try:
+            self._fill()
+        except BaseException:  # fork refused (EAGAIN): the children already started stop too
+            self.kill()
+            raise
+
+    def _fill(self) -> None:
+        while self.waiting and len(self.running) < self.limit:
+            index = self.waiting.pop(0)
+            read_end, pid = _start(self.tasks[index])
+            self.running[read_end] = (index, pid, bytearray())
+
+    def wait(self) -> dict[int, BaseException]:
+        """Wait for every task; their errors by task index (empty when all succeeded)."""
+        while self.waiting or self.running:
+            self._fill()
+            # `selectors` (poll/epoll), not `select.select`: a long-lived process (a build server)
+            # may hold descriptors above select's 1024 limit.
+            with selectors.DefaultSelector() as selector:
+                for read_end in self.running:
+                    selector.register(read_end, selectors.EVENT_READ)
+                ready = [key.fd for key, _ in selector.select()]
+            for read_end in ready:
+                index, pid, data = self.running[read_end]
+                chunk = os.read(read_end, 1 << 16)
+                if chunk:
+                    data += chunk
+                    continue
+                del self.running[read_end]  # end of file: the child is done
+                os.close(read_end)
+                error = _finish(pid, bytes(data))
+                if error is not None:
+                    self.errors[index] = error
+        return self.errors
+
+    def kill(self) -> None:
+        self.waiting.clear()
+        for read_end, (_, pid, _) in self.running.items():
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                os.waitpid(pid, 0)
+            with contextlib.suppress(OSError):
+                os.close(read_end)
+        self.running.clear()
+
+    def __enter__(self) -> Children:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.kill()
+
+
+def _start(task: Task) -> tuple[int, int]:
+    """Fork a child running ``task``; return the read end of its result pipe and its pid."""
+    # Buffered text would otherwise be written twice: by the parent and by the child's copy.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    read_end, write_end = os.pipe()
+    parent = os.getpid()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns, never runs the parent's cleanup (`finally`, atexit)
+        status = 1
+        try:
+            # The inherited objects are the parent's: a collection here would walk (and so copy,
+            # page by page) the whole inherited heap; only what the task makes is collected.
+            gc.freeze()
+            os.close(read_end)
+            _die_with_parent(parent)
+            payload = _result_of(task)
+            view = memoryview(payload)
+            while view:
+                view = view[os.write(write_end, view) :]
+            sys.stdout.flush()
+            sys.stderr.flush()
+            status = 0
+        finally:
+            os._exit(status)
+    os.close(write_end)
+    return read_end, pid
+
+
+def _result_of(task: Task) -> bytes:
+    """b"" when ``task`` succeeded, else its exception pickled (or a stand-in that pickles)."""
+    try:
+        task()
+    except BaseException as error:  # every failure goes back to the parent, exit codes decided there
+        detail = "".join(traceback.format_exception(error))
+        try:
+            payload = pickle.dumps(error)
+            back = pickle.loads(payload)
+            if type(back) is not type(error) or str(back) != str(error):
+                raise TypeError("does not survive pickling")
+        except Exception:
+            payload = pickle.dumps((type(error).__name__, str(error), detail))
+        return pickle.dumps((payload, detail))
+    return b""
+
+
+def _finish(pid: int, data: bytes) -> BaseException | None:
+    """Reap the child ``pid``; its error (None when it succeeded)."""
+    _, status = os.waitpid(pid, 0)
+    if not data:
+        if os.waitstatus_to_exitcode(status) == 0:
+            return None
+        return RuntimeError(f"a writer process ended without a result ({_how(status)})")
+    payload, detail = pickle.loads(data)
+    error = pickle.loads(payload)
+    if isinstance(error, tuple):  # did not pickle: the same class name and text
+        name, text, _ = error
+        error = type(name, (Exception,), {})(text)
+    assert isinstance(error, BaseException)
+    error.add_note(f"raised in a forked writer process:\n{detail}")
+    return error
+
+
+def _how(status: int) -> str:
+    if os.WIFSIGNALED(status):
+        return f"killed by signal {os.WTERMSIG(status)}"
+    return f"exit status {os.waitstatus_to_exitcode(status)}"
+
+
+def _die_with_parent(parent: int) -> None:
+    """Linux: a child whose build was killed (kill -9) stops instead of writing on unseen."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)

@@ -1,0 +1,85 @@
+"""Shortcuts of the edit path give what the slow ways gave: `relative_path` makes each folder
+relative once and joins the file name (the text of `os.path.relpath` of the whole path, paths
+that lead back into the base's own folder included); stamps serialise file states as `asdict`."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from blendspace_pipeline.pipeline.stamp import FileState, _as_dict, file_state
+from blendspace_pipeline.pipeline.to_document import relative_path
+
+CASES = [
+    "/a/b/c.bvh",
+    "a/b.bvh",
+    "../x/y.bvh",
+    "/tmp/p/z.usda",
+    "/",
+    ".",
+    "..",
+    "a/..",
+    "/a/b/../c.bvh",
+    "c.bvh",
+    "/tmp/c.bvh",
+    "/tmp/out/c.bvh",
+    "/tmp/out",
+    "/tmp/out/../out/d.bvh",
+    "out/x/../y",
+    "out",
+]
+BASES = ["/tmp/out", "out", "/", ".", "/a/b", "../q", "/tmp/out/sub"]
+
+
+@pytest.mark.parametrize("base", BASES)
+def test_relative_path_is_relpath_of_the_whole_path(
+    base: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    for case in CASES:
+        expected = Path(os.path.relpath(Path(case), Path(base))).as_posix()
+        assert relative_path(Path(case), Path(base)) == expected, case
+
+
+def test_relative_path_follows_the_working_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Relative paths are taken from the working folder of the moment (a resident server moves)."""
+    (tmp_path / "one").mkdir()
+    (tmp_path / "two" / "deep").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "one")
+    first = relative_path(Path("clip.bvh"), tmp_path)
+    monkeypatch.chdir(tmp_path / "two" / "deep")
+    assert (first, relative_path(Path("clip.bvh"), tmp_path)) == ("one/clip.bvh", "two/deep/clip.bvh")
+
+
+def test_stamp_file_states_serialise_as_asdict(tmp_path: Path) -> None:
+    (tmp_path / "a.bvh").write_text("x\n", encoding="utf-8")
+    for state in (file_state(tmp_path / "a.bvh"), file_state(tmp_path), file_state(tmp_path / "gone")):
+        assert json.dumps(_as_dict(state)) == json.dumps(dataclasses.asdict(state))
+    assert list(_as_dict(FileState("p", 1, 2, "h"))) == [f.name for f in dataclasses.fields(FileState)]
+
+
+def test_snap_rounds_as_numpy_did() -> None:
+    from blendspace_pipeline.space.placement import Axis
+
+    def numpy_snap(axis: Axis, value: float) -> float:
+        index = np.round((value - axis.minimum) / axis.step)
+        return round(float(axis.minimum + index * axis.step), 9) + 0.0
+
+    rng = np.random.default_rng(2)
+    axes = [
+        Axis("x", "speed", 0.0, 5.0, 20),
+        Axis("x", "turn_rate", -180.0, 180.0, 8),
+        Axis("y", "d", -0.0, 1.0, 3),
+    ]
+    halves = [axis.minimum + (k + 0.5) * axis.step for axis in axes for k in range(-3, 25)]  # ties
+    values = halves + rng.uniform(-400, 400, 2000).tolist() + [0.0, -0.0, 1e300, -1e300, math.inf, -math.inf]
+    for axis in axes:
+        for value in values:
+            assert repr(axis.snap(value)) == repr(numpy_snap(axis, value)), (axis, value)
+        assert math.isnan(axis.snap(math.nan))
