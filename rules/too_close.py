@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import heapq
+import math
 from collections.abc import Iterator
-
-from blendspace_pipeline.rules._geometry import distance
 
 from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
@@ -69,15 +68,17 @@ def _leader_groups(space: SpaceView, tau: float) -> list[tuple[int, list[int]]]:
         neighbours[i].append(j)
         neighbours[j].append(i)
     points = space.normalised_positions
+    xs, ys = points[:, 0].tolist(), points[:, 1].tolist()  # Python floats: groups are small
     free = [True] * count
 
     def key(index: int) -> tuple[int, float, str] | None:
         group = [index, *(j for j in neighbours[index] if free[j])]
         if len(group) < 2:
             return None
-        centre = (float(points[group, 0].mean()), float(points[group, 1].mean()))
+        cx = math.fsum(xs[j] for j in group) / len(group)
+        cy = math.fsum(ys[j] for j in group) / len(group)
         # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
-        return (-len(group), round(distance(points[index], centre), 9), space.samples[index].name)
+        return (-len(group), round(math.hypot(xs[index] - cx, ys[index] - cy), 9), space.samples[index].name)
 
     heap = [(k, i) for i in range(count) if neighbours[i] and (k := key(i)) is not None]
     heapq.heapify(heap)
