@@ -72,13 +72,15 @@ def _leader_groups(space: SpaceView, tau: float) -> list[tuple[int, list[int]]]:
     free = [True] * count
 
     def key(index: int) -> tuple[int, float, str] | None:
-        group = [index, *(j for j in neighbours[index] if free[j])]
-        if len(group) < 2:
+        group = [j for j in neighbours[index] if free[j]]
+        if not group:
             return None
-        cx = math.fsum(xs[j] for j in group) / len(group)
-        cy = math.fsum(ys[j] for j in group) / len(group)
+        group.append(index)
+        size = len(group)
+        cx = sum([xs[j] for j in group]) / size
+        cy = sum([ys[j] for j in group]) / size
         # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
-        return (-len(group), round(math.hypot(xs[index] - cx, ys[index] - cy), 9), space.samples[index].name)
+        return (-size, round(math.hypot(xs[index] - cx, ys[index] - cy), 9), space.samples[index].name)
 
     heap = [(k, i) for i in range(count) if neighbours[i] and (k := key(i)) is not None]
     heapq.heapify(heap)
