@@ -101,7 +101,11 @@ def add_common(parser: argparse.ArgumentParser) -> None:
         f"or BLENDSPACE_RULE_PATH (same as {NO_PLUGINS_VARIABLE}=1)",
     )
     parser.add_argument(
-        "--jobs", type=_positive, default=1, metavar="N", help="use N processes: clips measured, the foot-skate map played and the outputs written in parallel (default 1)"
+        "--jobs",
+        type=_positive,
+        default=1,
+        metavar="N",
+        help="use N processes to measure clips, play the foot-skate map and write outputs (default 1)",
     )
     parser.add_argument(
         "--library",
