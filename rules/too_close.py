@@ -6,6 +6,8 @@ import heapq
 import math
 from collections.abc import Iterator
 
+import numpy as np
+
 from blendspace_pipeline.api import Diagnostic, Rule, SpaceView, placeholder
 
 
@@ -56,33 +58,40 @@ class TooClose(Rule):
 
 def _leader_groups(space: SpaceView, tau: float) -> list[tuple[int, list[int]]]:
     """(representative, sorted members) groups, greedily: the free sample with the most free
-    neighbours closer than ``tau`` takes them. A heap with lazy re-evaluation keeps this about
-    n log n: a sample's key only worsens as its neighbours are taken (fewer neighbours), and it
-    is re-pushed with the new key when popped stale."""
+    neighbours closer than ``tau`` takes them. A heap with lazy re-evaluation keeps this near
+    n log n: a sample's key only worsens as its neighbours are taken (fewer neighbours), and it is
+    re-pushed with its new key when popped stale. Every sample enters with an optimistic key
+    (its full neighbourhood, distance 0), so the first pop computes its real one."""
     pairs = space.close_pairs(tau)
     if not len(pairs):
         return []
     count = len(space.samples)
-    neighbours: list[list[int]] = [[] for _ in range(count)]
-    for i, j in pairs.tolist():
-        neighbours[i].append(j)
-        neighbours[j].append(i)
+    # Neighbours as compressed rows: sample i's are indices[start[i]:start[i + 1]].
+    rows = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    order = np.argsort(rows, kind="stable")
+    indices = np.concatenate([pairs[:, 1], pairs[:, 0]])[order]
+    start = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=count))]).tolist()
     points = space.normalised_positions
-    xs, ys = points[:, 0].tolist(), points[:, 1].tolist()  # Python floats: groups are small
-    free = [True] * count
+    xs, ys = points[:, 0], points[:, 1]
+    names = [sample.name for sample in space.samples]
+    free = np.ones(count, dtype=bool)
+
+    def free_neighbours(index: int) -> np.ndarray:
+        around = indices[start[index] : start[index + 1]]
+        return around[free[around]]
 
     def key(index: int) -> tuple[int, float, str] | None:
-        group = [j for j in neighbours[index] if free[j]]
-        if not group:
+        group = free_neighbours(index)
+        if not group.size:
             return None
-        group.append(index)
-        size = len(group)
-        cx = sum([xs[j] for j in group]) / size
-        cy = sum([ys[j] for j in group]) / size
+        size = group.size + 1
+        cx = (float(xs[group].sum()) + float(xs[index])) / size
+        cy = (float(ys[group].sum()) + float(ys[index])) / size
         # Rounded so that equal distances (both ends of a pair, always) fall to the name, not to float noise.
-        return (-size, round(math.hypot(xs[index] - cx, ys[index] - cy), 9), space.samples[index].name)
+        return (-size, round(math.hypot(float(xs[index]) - cx, float(ys[index]) - cy), 9), names[index])
 
-    heap = [(k, i) for i in range(count) if neighbours[i] and (k := key(i)) is not None]
+    degree = np.diff(start).tolist()
+    heap = [((-(degree[i] + 1), -1.0, ""), i) for i in range(count) if degree[i]]
     heapq.heapify(heap)
     groups = []
     while heap:
@@ -95,8 +104,7 @@ def _leader_groups(space: SpaceView, tau: float) -> list[tuple[int, list[int]]]:
         if current != stale:
             heapq.heappush(heap, (current, index))
             continue
-        members = sorted([index, *(j for j in neighbours[index] if free[j])])
-        for member in members:
-            free[member] = False
+        members = sorted([index, *free_neighbours(index).tolist()])
+        free[members] = False
         groups.append((index, members))
     return groups
