@@ -11,41 +11,19 @@ from pathlib import Path
 
 import pytest
 from conftest import shared_data
+from test_output_faults import _isolated  # noqa: F401 - _isolated is an autouse fixture
+from test_output_faults import _project as faults_project
 
 from blendspace_pipeline.cli import main
-from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.pipeline import forked
-from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 NAMES = ("t.blendspace.json", "t.blendspace.usda", "t.report.html", "t.png")
 
 pytestmark = pytest.mark.skipif(not forked.can_fork(), reason="parallel writers need os.fork")
 
 
-@pytest.fixture(autouse=True)
-def _isolated(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "user-cache"))
-
-
 def _project(root: Path, divisions: int = 100) -> Path:
-    clips = root / "clips"
-    clips.mkdir(parents=True, exist_ok=True)
-    for name, spec in {
-        "idle": GaitSpec("idle"),
-        "walk": GaitSpec("walk", speed=1.4),
-        "run": GaitSpec("run", speed=3.5),
-        "turn": GaitSpec("turn", turn_rate=90.0),
-    }.items():
-        if not (clips / f"{name}.usda").exists():
-            write_usd_clip(generate(spec), clips / f"{name}.usda", meters_per_unit=1.0, up_axis="y")
-    manifest = root / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: t\nclips:\n  - path: clips/*.usda\n"
-        f"axes:\n  x: {{feature: turn_rate, min: -180, max: 180, divisions: {divisions}}}\n",
-        encoding="utf-8",
-    )
-    return manifest
+    return faults_project(root, divisions, run=True)
 
 
 def _outputs(out: Path) -> dict[str, bytes]:

@@ -32,14 +32,15 @@ def _isolated(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "user-cache"))
 
 
-def _project(root: Path, divisions: int = 100) -> Path:
+def _project(root: Path, divisions: int = 100, *, run: bool = False) -> Path:
+    """Idle, walk and turn (and with ``run`` a 3.5 m/s run) as USD clips, and their manifest."""
     clips = root / "clips"
     clips.mkdir(parents=True, exist_ok=True)
-    for name, spec in {
-        "idle": GaitSpec("idle"),
-        "walk": GaitSpec("walk", speed=1.4),
-        "turn": GaitSpec("turn", turn_rate=90.0),
-    }.items():
+    specs = {"idle": GaitSpec("idle"), "walk": GaitSpec("walk", speed=1.4)}
+    if run:
+        specs["run"] = GaitSpec("run", speed=3.5)
+    specs["turn"] = GaitSpec("turn", turn_rate=90.0)
+    for name, spec in specs.items():
         if not (clips / f"{name}.usda").exists():
             write_usd_clip(generate(spec), clips / f"{name}.usda", meters_per_unit=1.0, up_axis="y")
     manifest = root / "manifest.yaml"

@@ -9,7 +9,6 @@ on disk) or another environment's code never does: the command then runs locally
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import signal
@@ -22,6 +21,7 @@ from pathlib import Path
 
 import pytest
 from conftest import tidy_set
+from test_build_e2e import _tree
 
 from blendspace_pipeline.motion.procedural import generate
 from blendspace_pipeline.server import address
@@ -70,14 +70,6 @@ def _status(env: dict[str, str]) -> dict[str, object] | None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     answer: dict[str, object] | None = json.loads(out.stdout)
     return answer
-
-
-def _tree(folder: Path) -> dict[str, str]:
-    return {
-        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(folder.rglob("*"))
-        if p.is_file()
-    }
 
 
 @pytest.fixture
