@@ -15,6 +15,7 @@ numpy, a studio's rule plugin), so a server never runs code older than what the 
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 import socket
 import stat
@@ -80,10 +81,11 @@ def private_problem(folder: Path) -> str | None:
 
 
 def _code_roots() -> list[Path]:
-    roots = [PACKAGE]
-    rules = PACKAGE.parent / "rules"  # an editable checkout keeps the built-in rules beside the package
-    roots.append(rules if (rules / "__init__.py").is_file() else PACKAGE / "rules")
-    return roots
+    """The package, and the built-in rules wherever they are installed (an editable checkout
+    keeps them beside the package, in `rules/`)."""
+    spec = importlib.util.find_spec("blendspace_pipeline.rules")
+    rules = [Path(folder) for folder in (spec.submodule_search_locations or [])] if spec else []
+    return [PACKAGE, *(folder for folder in rules if PACKAGE not in folder.parents)]  # no folder twice
 
 
 def _walk(root: Path, digest: hashlib._Hash) -> None:
