@@ -89,10 +89,12 @@ def test_a_served_build_writes_what_a_local_build_writes(server: dict[str, str],
     local_project, served_project = tmp_path / "local", tmp_path / "served"
     _project(local_project)
     _project(served_project)
+    # The report is dated by its newest input; the two copies may be written a second apart.
+    dated = {**server, "SOURCE_DATE_EPOCH": "1700000000"}
     local = _blendspace(
-        "build", "manifest.yaml", env={**server, address.NO_SERVER_VARIABLE: "1"}, cwd=local_project
+        "build", "manifest.yaml", env={**dated, address.NO_SERVER_VARIABLE: "1"}, cwd=local_project
     )
-    served = _blendspace("build", "manifest.yaml", env=server, cwd=served_project)  # relative to its cwd
+    served = _blendspace("build", "manifest.yaml", env=dated, cwd=served_project)  # relative to its cwd
     assert _status(server)["served"] == 1  # type: ignore[index]
     assert served.returncode == local.returncode == 0, served.stderr
     assert served.stdout.replace("served/", "local/") == local.stdout.replace("served/", "local/")
