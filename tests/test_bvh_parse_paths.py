@@ -5,6 +5,7 @@ write (tabs, CRLF, trailing spaces, runs of spaces, exponents, wrapped frames) o
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from dataclasses import replace
@@ -16,6 +17,7 @@ from conftest import shared_data
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from blendspace_pipeline import native
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
@@ -49,24 +51,37 @@ HEADER_LINES = HEADER.count("\n")  # frame lines start on line HEADER_LINES + 1
 
 
 class Paths:
-    """Which parser produced the values of each read (the fast path must really be taken)."""
+    """Which parser produced the values of each read (the fast paths must really be taken)."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
         self.monkeypatch = monkeypatch
         self.arrow_results: list[bool] = []
-        real = bvh._motion_arrow
+        self.native_results: list[bool] = []
+        real, real_native = bvh._motion_arrow, bvh._motion_native
 
         def spy(*args: object, **kwargs: object) -> object:
             result = real(*args, **kwargs)  # type: ignore[arg-type]
             self.arrow_results.append(result is not None)
             return result
 
+        def spy_native(*args: object, **kwargs: object) -> object:
+            result = real_native(*args, **kwargs)  # type: ignore[arg-type]
+            if native.kernels is not None:  # only the reads that try the kernel
+                self.native_results.append(result is not None)
+            return result
+
         monkeypatch.setattr(bvh, "_motion_arrow", spy)
+        monkeypatch.setattr(bvh, "_motion_native", spy_native)
 
     def read(self, path: Path, parser: str) -> Clip:
-        """``parser``: "arrow" (pyarrow first, as a build reads), "numpy" (pyarrow absent)."""
+        """``parser``: "native" (the compiled kernel first, then pyarrow: as a build reads),
+        "arrow" (no kernel, pyarrow first), "numpy" (neither)."""
+        if parser == "native":
+            assert native.kernels is not None, "the compiled kernels were not built (setup.py)"
         with self.monkeypatch.context() as patch:
-            if parser == "arrow":  # also on the small files here (a build uses numpy below 32 KB)
+            if parser != "native":
+                patch.setattr(native, "kernels", None)
+            if parser in ("native", "arrow"):  # also on the small files here (a build uses numpy below 32 KB)
                 patch.setattr(bvh, "ARROW_AFTER_BYTES", -1)
                 patch.setattr(bvh, "ARROW_MIN_BLOCK", 0)
             else:
@@ -170,6 +185,7 @@ def test_spellings_give_the_same_values_on_every_parser(tmp_path: Path, paths: P
     path = _variant(tmp_path, values, spec)
     arrow, numpy = paths.read(path, "arrow"), paths.read(path, "numpy")
     _same_bits(arrow, numpy)
+    _same_bits(paths.read(path, "native"), numpy)
     written = _written(values, str(spec["spell"]))
     assert arrow.translations[:, 0].tobytes() == np.ascontiguousarray(written[:, :3]).tobytes()
     if not spec.get("wrap"):  # the walk reads one frame per line: wrapped frames are numpy's alone
@@ -179,7 +195,11 @@ def test_spellings_give_the_same_values_on_every_parser(tmp_path: Path, paths: P
         " ",
         "\t",
     )
-    assert paths.arrow_results == [regular]
+    # The kernel takes any whitespace; it declines 17-digit significands (to pyarrow, same values).
+    assert paths.arrow_results == [regular] + (
+        [] if spec["spell"] in (".6f", ".4f", ".9e", ".8g") else [regular]
+    )
+    assert paths.native_results == [spec["spell"] in (".6f", ".4f", ".9e", ".8g")]
 
 
 @pytest.mark.parametrize(
@@ -230,6 +250,7 @@ def test_broken_rows_give_the_same_path_line_error(
     path = _file(tmp_path, rows, newline=str(spec.get("newline", "\n")), frames=frames)
     with_arrow = _error(lambda: paths.read(path, "arrow"))
     assert with_arrow == _error(lambda: paths.read(path, "numpy"))
+    assert with_arrow == _error(lambda: paths.read(path, "native"))
     assert with_arrow[0] == HEADER_LINES + line, with_arrow
     assert words in with_arrow[1]
 
@@ -238,7 +259,9 @@ def test_real_cmu_takes_identical_on_every_parser(paths: Paths) -> None:
     for name in ("131_01.bvh", "131_02.bvh"):
         path = shared_data("cmu", name)
         _same_bits(paths.read(path, "arrow"), paths.read(path, "numpy"))
-    assert paths.arrow_results == [True, True]  # the fast path reads real mocap takes
+        _same_bits(paths.read(path, "native"), paths.read(path, "numpy"))
+    assert paths.arrow_results == [True, True]  # the fast paths read real mocap takes
+    assert paths.native_results == [True, True]
 
 
 def test_generated_clip_with_provenance_identical_on_every_parser(tmp_path: Path, paths: Paths) -> None:
@@ -330,8 +353,10 @@ def test_property_fast_path_equals_numpy_path(
             numpy = paths.read(path, "numpy")
         except ClipReadError as error:
             assert _error(lambda: paths.read(path, "arrow")) == (error.line, error.message)
+            assert _error(lambda: paths.read(path, "native")) == (error.line, error.message)
             return
         arrow = paths.read(path, "arrow")
+        _same_bits(paths.read(path, "native"), numpy)
     _same_bits(arrow, numpy)
     written = _written(np.array(values), spell)
     assert arrow.translations[:, 0].tobytes() == np.ascontiguousarray(written[:, :3]).tobytes()
@@ -393,8 +418,9 @@ def test_non_ascii_names_take_the_text_path_with_the_same_values(tmp_path: Path,
 
 
 def test_pyarrow_is_imported_only_once_a_process_reads_a_library(tmp_path: Path) -> None:
-    """`import blendspace_pipeline.api` and reading one small clip stay without pyarrow's import
-    (~70 ms); once more than `ARROW_AFTER_BYTES` went through numpy, pyarrow takes over."""
+    """Without the compiled kernel, `import blendspace_pipeline.api` and reading one small clip
+    stay without pyarrow's import (~70 ms); once more than `ARROW_AFTER_BYTES` went through numpy,
+    pyarrow takes over. With it, pyarrow is not imported at all."""
     small = _file(tmp_path, _format(_values(10), ".6f"), "small.bvh")
     large = _file(tmp_path, _format(_values(bvh.ARROW_AFTER_BYTES // 90 + 10, seed=5), ".6f"), "large.bvh")
     assert large.stat().st_size > bvh.ARROW_AFTER_BYTES
@@ -409,7 +435,11 @@ def test_pyarrow_is_imported_only_once_a_process_reads_a_library(tmp_path: Path)
         f"assert read(Path({str(small)!r}))[0].frame_count == 10\n"
         "assert 'pyarrow.csv' in sys.modules, 'a library'\n"
     )
-    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    without_kernels = {**os.environ, native.NO_KERNELS_VARIABLE: "1"}
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120, env=without_kernels)
+    # With the compiled kernel, plain takes never need pyarrow.
+    kernel_code = code.replace("'pyarrow.csv' in sys.modules", "'pyarrow' not in sys.modules")
+    subprocess.run([sys.executable, "-c", kernel_code], check=True, timeout=120)
 
 
 def test_read_regular_file_reads_all_and_keeps_its_limit(tmp_path: Path) -> None:

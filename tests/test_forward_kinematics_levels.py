@@ -1,15 +1,18 @@
-"""`forward_kinematics` (all joints of one depth at a time, component-major) equals the joint-by-joint
-composition (`forward_kinematics_by_joint`, the code before it) to the bit."""
+"""`forward_kinematics` (the compiled kernel, and numpy's all joints of one depth at a time,
+component-major) equals the joint-by-joint composition (`forward_kinematics_by_joint`, the code
+before it) to the bit."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from conftest import shared_data
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from blendspace_pipeline import native
 from blendspace_pipeline.motion import hostile
 from blendspace_pipeline.motion.clip import Clip, Skeleton, forward_kinematics, forward_kinematics_by_joint
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
@@ -17,10 +20,15 @@ from blendspace_pipeline.readers import read_clips
 
 
 def _same(clip: Clip) -> None:
-    fast, plain = forward_kinematics(clip), forward_kinematics_by_joint(clip)
-    for a, b in zip(fast, plain, strict=True):
-        assert a.shape == b.shape and a.dtype == b.dtype
-        assert a.tobytes() == b.tobytes()
+    """The compiled kernel (when built), the numpy levels and the joint-by-joint path agree."""
+    plain = forward_kinematics_by_joint(clip)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(native, "kernels", None)
+        levels = forward_kinematics(clip)
+    for fast in (forward_kinematics(clip), levels):
+        for a, b in zip(fast, plain, strict=True):
+            assert a.shape == b.shape and a.dtype == b.dtype
+            assert a.tobytes() == b.tobytes()
 
 
 def test_real_and_generated_takes() -> None:

@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from blendspace_pipeline import native
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -151,7 +152,8 @@ def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
     rows (`out=`), so no temporary is allocated. The terms are `quaternions.multiply` and
     `quaternions.rotate`'s, in their order, element by element, so the result is
     `forward_kinematics_by_joint`'s to the bit (tested); a 19-joint rig takes 5 steps instead of
-    18, on contiguous rows instead of strided columns.
+    18, on contiguous rows instead of strided columns. The compiled kernel (`native`), when built,
+    does the same terms frame by frame in C, ~5x faster, to the same bits.
     """
     skeleton = clip.skeleton
     local_rot, local_pos = clip.rotations, clip.translations
@@ -163,6 +165,12 @@ def forward_kinematics(clip: Clip) -> tuple[FloatArray, FloatArray]:
         or local_pos.ndim != 3
     ):
         return forward_kinematics_by_joint(clip)
+    kernels = native.kernels
+    if kernels is not None and local_rot.flags.c_contiguous and local_pos.flags.c_contiguous:
+        world_rot, world_pos = np.empty_like(local_rot), np.empty_like(local_pos)
+        parents = _parents_array(tuple(skeleton.parents))
+        if kernels.forward_kinematics(local_rot, local_pos, parents, world_rot, world_pos, len(local_rot)):
+            return world_rot, world_pos
     frames, count = local_rot.shape[:2]
     plan = _plan(tuple(skeleton.parents))
     work = _work(count, frames, plan.widest)
@@ -235,6 +243,11 @@ class _Plan:
     roots: int
     levels: tuple[tuple[int, int, NDArray[np.intp]], ...]
     widest: int
+
+
+@lru_cache(maxsize=256)
+def _parents_array(parents: tuple[int, ...]) -> NDArray[np.int64]:
+    return np.array(parents, dtype=np.int64)
 
 
 @lru_cache(maxsize=256)

@@ -97,7 +97,7 @@ def _walk(root: Path, digest: hashlib._Hash) -> None:
         if entry.is_dir(follow_symlinks=False):
             if entry.name != "__pycache__":
                 _walk(Path(entry.path), digest)
-        elif entry.name.endswith((".py", ".json", ".yaml", ".html", ".js", ".css")):
+        elif entry.name.endswith((".py", ".json", ".yaml", ".html", ".js", ".css", ".so", ".pyd")):
             info = entry.stat()
             digest.update(f"{entry.path}\0{info.st_mtime_ns}\0{info.st_size}\n".encode())
 
