@@ -294,7 +294,11 @@ def _relay_interrupts(conn: socket.socket, finished: threading.Event) -> None:
     except OSError:
         data = b""
     if not finished.is_set() and (data == INTERRUPT or not data):
-        os.kill(os.getpid(), signal.SIGINT)
+        # To the main thread: a process-wide kill may land on this thread, and then the main
+        # thread (asleep in a rule, say) would see it only when it next runs Python code.
+        main = threading.main_thread().ident
+        assert main is not None
+        signal.pthread_kill(main, signal.SIGINT)
 
 
 def _flush() -> None:
