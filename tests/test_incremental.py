@@ -274,11 +274,20 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
     monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
     monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
     calls: list[int] = []
+    beside: list[bool] = []  # whether this process wrote outputs while the workers played
     real = blend_quality._play_all
 
-    def recorded(prepared, settings, points, jobs):  # type: ignore[no-untyped-def]
+    def recorded(prepared, settings, points, jobs, meanwhile=None):  # type: ignore[no-untyped-def]
         calls.append(len(points))
-        return real(prepared, settings, points, jobs)
+        ran: list[bool] = []
+
+        def spied() -> None:
+            ran.append(True)
+            meanwhile()
+
+        result = real(prepared, settings, points, jobs, spied if meanwhile else None)
+        beside.append(bool(ran))
+        return result
 
     monkeypatch.setattr(blend_quality, "_play_all", recorded)
     pools: list[int] = []
@@ -294,6 +303,7 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
         assert main(["build", str(manifest), "--out", str(out), "--no-fix", "--jobs", jobs]) in (0, 1)
     assert calls and calls[0] >= 2  # there were blends to play, enough to fork for
     assert pools == [1]  # --jobs 1 played in process, --jobs 2 in a pool
+    assert beside == [False, True]  # with the pool, the USD was written while it played
     assert _skate(tmp_path / "project" / "jobs1") == _skate(tmp_path / "project" / "jobs2")
     skate = [v for row in _skate(tmp_path / "project" / "jobs2")["foot_skate"] for v in row]  # type: ignore[index]
     assert any(v is not None for v in skate)

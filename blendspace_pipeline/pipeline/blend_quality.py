@@ -21,7 +21,7 @@ import hashlib
 import json
 import multiprocessing
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -214,7 +214,12 @@ PARALLEL_MIN_POINTS = 8
 
 
 def foot_skate_grid(
-    space: BlendSpace, doc: BlendSpaceDocument, grid: RuntimeGrid, prepared: PreparedSamples, jobs: int = 1
+    space: BlendSpace,
+    doc: BlendSpaceDocument,
+    grid: RuntimeGrid,
+    prepared: PreparedSamples,
+    jobs: int = 1,
+    meanwhile: Callable[[], None] | None = None,
 ) -> FloatArray:
     settings = rig_settings(space.manifest.model.skeleton)
     base = _base_key(space, settings.cache_key(), grid.sync) if cache.cache_dir() is not None else ""
@@ -242,7 +247,8 @@ def foot_skate_grid(
             elif value is not None:
                 skate[row, col] = value
                 computed[row, col] = True
-    for (row, col, *_, key), value in zip(to_play, _play_all(prepared, settings, to_play, jobs), strict=True):
+    played = _play_all(prepared, settings, to_play, jobs, meanwhile)
+    for (row, col, *_, key), value in zip(to_play, played, strict=True):
         _store(key, value)
         if value is not None:
             skate[row, col] = value
@@ -257,11 +263,17 @@ def foot_skate_grid(
 
 
 def _play_all(
-    prepared: PreparedSamples, settings: RigSettings, points: list[Point], jobs: int
+    prepared: PreparedSamples,
+    settings: RigSettings,
+    points: list[Point],
+    jobs: int,
+    meanwhile: Callable[[], None] | None = None,
 ) -> list[float | None]:
     """Every point's foot skate, in ``jobs`` forked processes when there are enough points (a cold
     build: each point reads and prepares the clips of its triangle). Points of one triangle go to
-    one worker, so a clip is read about once; the values are the same as played here."""
+    one worker, so a clip is read about once; the values are the same as played here.
+    ``meanwhile`` runs in this process while the workers play (only then: the caller runs it
+    itself when it was not called)."""
     fork = "fork" in multiprocessing.get_all_start_methods()
     if jobs < 2 or len(points) < PARALLEL_MIN_POINTS or not fork:
         return [_play_point(prepared, p[2], p[3], p[4], settings) for p in points]
@@ -272,7 +284,10 @@ def _play_all(
     _FORKED = (prepared, settings)
     try:
         with ProcessPoolExecutor(len(chunks), mp_context=multiprocessing.get_context("fork")) as pool:
-            played = [value for chunk in pool.map(_play_chunk, chunks) for value in chunk]
+            results = pool.map(_play_chunk, chunks)  # submitted: the workers start now
+            if meanwhile is not None:
+                meanwhile()
+            played = [value for chunk in results for value in chunk]
     finally:
         _FORKED = None
     values: list[float | None] = [None] * len(points)
@@ -296,12 +311,14 @@ def blend_quality(
     sync: SyncMode = DEFAULT_SYNC,
     resolution: int = DEFAULT_GRID,
     jobs: int = 1,
+    meanwhile: Callable[[], None] | None = None,
 ) -> BlendQualityDoc:
+    """The blend quality maps of ``doc``. ``meanwhile``: work for this process while forked
+    workers play the foot-skate map (see `_play_all`); it may not be called at all."""
     grid = runtime_grid(doc, sync, resolution)
     has_feet = any(s.clip.measurement.contacts is not None for s in space.samples)
-    skate = (
-        foot_skate_grid(space, doc, grid, PreparedSamples(space, generated or {}), jobs) if has_feet else None
-    )
+    prepared = PreparedSamples(space, generated or {})
+    skate = foot_skate_grid(space, doc, grid, prepared, jobs, meanwhile) if has_feet else None
     if skate is not None and not np.isfinite(skate).any():
         skate = None  # no blend could be played (clips unreadable or without feet)
     summary = {

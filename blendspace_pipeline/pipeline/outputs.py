@@ -345,15 +345,29 @@ def _write_outputs(
 
         # With --jobs N this process is one writer and N - 1 forked processes are the others (a
         # fork costs a copy of the page tables, so no more): the longest outputs that do not show
-        # the blend quality (the PNG first) start now, beside the foot-skate map; after it, free
-        # slots take the longest of the rest and this process writes what is left, in order.
+        # the blend quality (the PNG first) start now, beside the foot-skate map, and this process
+        # writes the rest of them while the map's workers play; after it, free slots take the
+        # longest of the rest and this process writes what is left, in order.
         # A failure is raised as the serial order of `formats` would have raised it.
         parallel = jobs > 1 and can_fork()
         slots = jobs - 1 if parallel else 0
-        early = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)[:slots]
-        blind_text = document.model_dump_json(indent=2) + "\n" if early else None
+        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)
+        early, beside = (blind[:slots], blind[slots:]) if parallel else ([], [])
+        blind_text = document.model_dump_json(indent=2) + "\n" if early or beside else None
         started = plan(early, blind_text) if blind_text is not None else []
+        here = plan(beside, blind_text) if blind_text is not None else []
         errors: dict[int, BaseException] = {}
+        waiting = list(here)
+
+        def meanwhile() -> None:
+            while waiting:
+                name = waiting.pop(0)
+                try:
+                    tasks[name]()
+                except Exception as error:  # weighed against the forked writers' errors below
+                    errors[formats.index(name)] = error
+                    waiting.clear()
+
         with Children([tasks[name] for name in started], len(started)) as children:
             # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
             document.blend_quality = blend_quality(
@@ -362,7 +376,9 @@ def _write_outputs(
                 {n: g.clip for n, g in fixes.generated.items()},
                 sync=space.manifest.model.blend.sync,
                 jobs=jobs,
+                meanwhile=meanwhile,
             )
+            meanwhile()  # when the map had no workers to wait for
             staged: list[Path] = []  # relative to staging (and to out_dir)
             for sub, state, folder in made:
                 in_space = {s.name for s in sub.samples}
@@ -372,7 +388,10 @@ def _write_outputs(
                             staged.append(path.relative_to(staging))
             for relative in staged:
                 verify_written(staging / relative)
-            late = plan([name for name in formats if name not in early], document_text(document, blind_text))
+            late = plan(
+                [name for name in formats if name not in early and name not in beside],
+                document_text(document, blind_text),
+            )
             if not parallel:
                 run_tasks([tasks[name] for name in late], 1)  # in order, the first failure raised
             forked = sorted(late, key=_WRITER_ORDER.index)[: max(0, slots - len(started))] if parallel else []
