@@ -129,6 +129,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = forward(words)
         if code is not None:
             return code
+    if argv is None:  # a process of its own: measuring in it (--jobs 1) reuses its freed pages
+        from blendspace_pipeline.memory import keep_freed_memory
+
+        keep_freed_memory()
     return run_here(words)
 
 

@@ -1,4 +1,4 @@
-"""The measuring workers' allocator settings (`measure_stage.keep_freed_memory`): glibc keeps freed
+"""The measuring workers' allocator settings (`memory.keep_freed_memory`): glibc keeps freed
 clip-sized blocks for the next clip instead of returning them to the kernel; elsewhere nothing
 happens and nothing fails."""
 
@@ -11,7 +11,7 @@ import sys
 
 import pytest
 
-from blendspace_pipeline.pipeline import measure_stage
+from blendspace_pipeline import memory
 
 # Measure a 7 s 120 fps take 10 times (what a worker does with every clip) and print the page
 # faults it cost: without the settings glibc returns the freed arrays' pages to the kernel and
@@ -19,7 +19,7 @@ from blendspace_pipeline.pipeline import measure_stage
 _PROBE = """
 import resource, sys
 if sys.argv[1] == "init":
-    from blendspace_pipeline.pipeline.measure_stage import keep_freed_memory
+    from blendspace_pipeline.memory import keep_freed_memory
     keep_freed_memory()
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
@@ -56,7 +56,7 @@ def test_elsewhere_it_does_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(sys, "platform", "darwin")
     monkeypatch.setattr(ctypes, "CDLL", no_library)
-    measure_stage.keep_freed_memory()
+    memory.keep_freed_memory()
 
 
 def test_a_libc_without_mallopt_is_no_error(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -66,6 +66,24 @@ def test_a_libc_without_mallopt_is_no_error(monkeypatch: pytest.MonkeyPatch) -> 
 
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.setattr(ctypes, "CDLL", lambda *_args: Musl())
-    measure_stage.keep_freed_memory()
+    memory.keep_freed_memory()
     monkeypatch.setattr(ctypes, "CDLL", lambda *_args: (_ for _ in ()).throw(OSError("no libc")))
-    measure_stage.keep_freed_memory()
+    memory.keep_freed_memory()
+
+
+def test_the_command_line_keeps_freed_memory_and_a_library_call_does_not(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`blendspace` is a process of its own (its in-process measuring, --jobs 1, gains the same);
+    `main([...])` from a script or a test leaves the caller's allocator alone."""
+    from blendspace_pipeline import cli
+
+    calls: list[int] = []
+    monkeypatch.setattr(memory, "keep_freed_memory", lambda: calls.append(1))
+    monkeypatch.setenv("BLENDSPACE_NO_SERVER", "1")
+    monkeypatch.setattr(sys, "argv", ["blendspace", "--version"])
+    assert cli.main() == 0
+    assert calls == [1]
+    assert cli.main(["--version"]) == 0
+    assert calls == [1]
+    assert "blendspace" in capsys.readouterr().out

@@ -312,7 +312,7 @@ def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
     _missing, imported_env = preload()
     # Every forked command inherits the allocator settings of the measuring workers: a served
     # `--jobs 1` build measures clips without a page fault per fresh page either.
-    from blendspace_pipeline.pipeline.measure_stage import keep_freed_memory
+    from blendspace_pipeline.memory import keep_freed_memory
 
     keep_freed_memory()
     # Forked commands share the server's memory copy-on-write; the collector walking every object
