@@ -19,11 +19,12 @@ For each file, the best of ``--repeat`` runs in CPU time (``time.process_time``:
 the figures hold on a shared machine) of:
 
 - ``parse``: the text to the header and the (channels, frames) MOTION values, `bvh.parse`
-  (pyarrow's CSV reader); the issue's "BVH parse throughput" row, in MB of file per second;
-- ``numpy``: the same with pyarrow hidden, the reader's previous parser (numpy ``fromstring``),
-  and the ratio ``numpy / parse``;
+  (the compiled kernel, `native`, when built); the issue's "BVH parse throughput" row, in MB of
+  file per second;
+- ``pyarrow``: the same without the kernels (pyarrow's CSV reader), and ``numpy``: with pyarrow
+  hidden too (numpy ``fromstring``), with their ratios to ``parse``;
 - ``read``: to a `Clip` (Euler angles to quaternions included), and ``+FK``: read and forward
-  kinematics, the floor under every cold build;
+  kinematics, the floor under every cold build, and its ratio without the kernels;
 - bvhio's ``readAsHierarchy`` and the ratios bvhio / read and bvhio / read+FK. bvhio's time grows
   faster than the file (10k frames, 5.5 MB: about 50 s), so it is skipped above ``--bvhio-max-mb``.
 
@@ -43,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from blendspace_pipeline import native
 from blendspace_pipeline.motion.clip import forward_kinematics
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import bvh
@@ -64,9 +66,25 @@ def best(action: Callable[[], object], repeat: int) -> float:
     return min(times)
 
 
-def without_pyarrow(action: Callable[[], object]) -> Callable[[], object]:
-    """``action`` with ``import pyarrow.csv`` failing: the reader falls back to numpy's parser."""
+def without_kernels(action: Callable[[], object]) -> Callable[[], object]:
+    """``action`` without the compiled kernels (`native`): the reader's pyarrow parser and numpy FK."""
 
+    def run() -> object:
+        saved = native.kernels
+        native.kernels = None
+        try:
+            return action()
+        finally:
+            native.kernels = saved
+
+    return run
+
+
+def without_pyarrow(action: Callable[[], object]) -> Callable[[], object]:
+    """``action`` without the kernels and with ``import pyarrow.csv`` failing: the reader falls
+    back to numpy's parser."""
+
+    @without_kernels
     def run() -> object:
         saved = sys.modules.get("pyarrow.csv")
         sys.modules["pyarrow.csv"] = None  # type: ignore[assignment]
@@ -86,13 +104,16 @@ def bench_file(path: Path, repeat: int, bvhio_max_mb: float) -> None:
 
     size = path.stat().st_size / 1e6
     parsed = best(lambda: parse(path), repeat)
+    arrow = best(without_kernels(lambda: parse(path)), repeat)
     numpy = best(without_pyarrow(lambda: parse(path)), repeat)
     ours = best(lambda: read(path), repeat)
     with_fk = best(lambda: forward_kinematics(read(path)[0]), repeat)
+    plain_fk = best(without_kernels(lambda: forward_kinematics(read(path)[0])), repeat)
     line = (
         f"{path.name:<20} {size:6.2f} MB  parse {parsed * 1e3:7.1f} ms = {size / parsed:4.0f} MB/s/core "
-        f"(numpy {size / numpy:3.0f} MB/s, x{numpy / parsed:4.1f})  read {ours * 1e3:7.1f} ms = "
-        f"{size / ours:4.0f} MB/s  +FK {with_fk * 1e3:7.1f} ms = {size / with_fk:4.0f} MB/s"
+        f"(pyarrow {size / arrow:3.0f} MB/s, x{arrow / parsed:4.1f}; numpy {size / numpy:3.0f} MB/s, "
+        f"x{numpy / parsed:4.1f})  read {ours * 1e3:7.1f} ms = {size / ours:4.0f} MB/s  "
+        f"+FK {with_fk * 1e3:7.1f} ms = {size / with_fk:4.0f} MB/s (no kernels x{plain_fk / with_fk:4.1f})"
     )
     if size > bvhio_max_mb:
         print(f"{line}  bvhio skipped (> {bvhio_max_mb:g} MB)", flush=True)
@@ -145,24 +166,30 @@ def bench_library(folder: Path, count: int) -> None:
     for path in warm:
         forward_kinematics(read(path)[0])
     size = sum(p.stat().st_size for p in timed) / 1e6 / len(timed)
-    totals = {"parse": 0.0, "read": 0.0, "+FK": 0.0}
-    for path in timed:
-        start = time.process_time()
-        parse(path)
-        middle = time.process_time()
-        clip = read(path)[0]
-        read_done = time.process_time()
-        forward_kinematics(clip)
-        end = time.process_time()
-        totals["parse"] += middle - start
-        totals["read"] += read_done - middle
-        totals["+FK"] += end - middle
-    per = {key: value / len(timed) for key, value in totals.items()}
-    print(
-        f"{len(timed)} library takes {size:5.2f} MB each, mean CPU per take: parse {per['parse'] * 1e3:6.2f} ms "
-        f"= {size / per['parse']:4.0f} MB/s/core  read {per['read'] * 1e3:6.2f} ms = {size / per['read']:4.0f} MB/s  "
-        f"+FK {per['+FK'] * 1e3:6.2f} ms = {size / per['+FK']:4.0f} MB/s"
-    )
+
+    def one_pass() -> dict[str, float]:
+        totals = {"parse": 0.0, "read": 0.0, "+FK": 0.0}
+        for path in timed:
+            start = time.process_time()
+            parse(path)
+            middle = time.process_time()
+            clip = read(path)[0]
+            read_done = time.process_time()
+            forward_kinematics(clip)
+            end = time.process_time()
+            totals["parse"] += middle - start
+            totals["read"] += read_done - middle
+            totals["+FK"] += end - middle
+        return {key: value / len(timed) for key, value in totals.items()}
+
+    for label, run in (("", one_pass), (" (no kernels)", without_kernels(one_pass))):
+        run()  # warm: the files are in the page cache for both passes
+        per: dict[str, float] = run()  # type: ignore[assignment]
+        print(
+            f"{len(timed)} library takes{label} {size:5.2f} MB each, mean CPU per take: parse "
+            f"{per['parse'] * 1e3:6.2f} ms = {size / per['parse']:4.0f} MB/s/core  read {per['read'] * 1e3:6.2f} ms "
+            f"= {size / per['read']:4.0f} MB/s  +FK {per['+FK'] * 1e3:6.2f} ms = {size / per['+FK']:4.0f} MB/s"
+        )
 
 
 def main() -> None:
