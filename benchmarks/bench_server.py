@@ -4,11 +4,12 @@
 
 A library of procedural 7 s walks at 120 fps (`bench_rebuild.write_library`, 0.46 MB of BVH each)
 is built once without the server. Then, each as `python -m blendspace_pipeline build` in a new
-process, as a pre-commit hook or an artist's save runs it:
+process, as a pre-commit hook or an artist's save runs it (`build --no-fix`, `check`):
 - one clip edited (re-authored at another speed, so its sample moves), without the server: the
   baseline;
 - the same kind of edit through a running server (`blendspace server start` first; its start is
   timed too), `--edits` times with a different clip each, median and best;
+- `check` after one clip edited (what a pre-commit hook runs), with and without the server;
 - nothing changed, with and without the server.
 Wall seconds and the ratio to the baseline (the issue's goal: one clip edited <= 1 s). Nothing is
 asserted; on a shared machine run it alone.
@@ -67,6 +68,7 @@ def main() -> None:
         env.pop("BLENDSPACE_NO_SERVER", None)
         blendspace = [sys.executable, "-m", "blendspace_pipeline"]
         build = [*blendspace, "build", str(manifest), "--no-fix", "--jobs", str(args.jobs)]
+        check = [*blendspace, "check", str(manifest), "--jobs", str(args.jobs)]
 
         def edit(index: int, speed: float) -> None:
             path = paths[(index * 97 + len(paths) // 2) % len(paths)]
@@ -78,14 +80,24 @@ def main() -> None:
         baseline = _run(build, local)
         rows.append(("one clip edited, no server (baseline)", baseline))
         rows.append(("nothing changed, no server", _run(build, local)))
+        # `check` after an edit (what a pre-commit hook runs): another clip each time, so the
+        # check measures it (the build after an edit would find it measured otherwise).
+        edit(50, 2.15)
+        rows.append(("check, one clip edited, no server", _run(check, local)))
         rows.append(("`blendspace server start` (once)", _run([*blendspace, "server", "start"], env)))
         try:
-            served = []
+            served, checked = [], []
             for index in range(1, args.edits + 1):
                 edit(index, 2.2 + 0.1 * index)
                 served.append(_run(build, env))
+                edit(50 + index, 2.15 + 0.1 * index)
+                checked.append(_run(check, env))
             rows.append((f"one clip edited, server (median of {len(served)})", statistics.median(served)))
             rows.append(("one clip edited, server (best)", min(served)))
+            rows.append(
+                (f"check, one clip edited, server (median of {len(checked)})", statistics.median(checked))
+            )
+            _run(build, env)  # takes in the last check's edit: the next build has nothing to do
             rows.append(("nothing changed, server", _run(build, env)))
         finally:
             subprocess.run([*blendspace, "server", "stop"], capture_output=True, env=env, check=False)

@@ -47,6 +47,11 @@ ROWS: dict[str, tuple[str, list[str], list[str]]] = {
         ["bench_server.py", "--clips", "1000"],
         ["bench_server.py", "--clips", "100", "--edits", "1"],
     ),
+    "server-jobs2": (
+        "the same with --jobs 2 (writers in parallel)",
+        ["bench_server.py", "--clips", "1000", "--jobs", "2"],
+        ["bench_server.py", "--clips", "100", "--edits", "1", "--jobs", "2"],
+    ),
     "scale": (
         "10,000 samples, stages after measurement",
         ["bench_scale.py", "--samples", "10000", "--browser"],
