@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
+import sys
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -109,6 +111,29 @@ def test_worker_processes_measure_what_one_process_measures(
     monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
     manifest = _project(tmp_path / "p")
     assert _summary(_measured(manifest, jobs=2)) == _summary(_measured(manifest, jobs=1))
+
+
+def test_workers_measuring_is_when_the_parent_imports_triangulation(tmp_path: Path) -> None:
+    """With --jobs 2 the parent imports what the next stage needs (`WARM_MODULES`) while the
+    workers measure, and is done with it when the stage returns (nothing forks mid-import);
+    with --jobs 1 nothing is imported ahead."""
+    manifest = _project(tmp_path / "p")
+    code = (
+        "import sys, threading\n"
+        "from pathlib import Path\n"
+        "from blendspace_pipeline.manifest import load_manifest\n"
+        "from blendspace_pipeline.manifest.paths import resolve_clip_files\n"
+        "from blendspace_pipeline.pipeline.measure_stage import WARM_MODULES, measure_files\n"
+        "assert not any(name in sys.modules for name in WARM_MODULES)\n"
+        f"loaded = load_manifest(Path({str(manifest)!r}))\n"
+        "measure_files(loaded, resolve_clip_files(loaded), jobs=int(sys.argv[1]))\n"
+        "warm = all(name in sys.modules for name in WARM_MODULES)\n"
+        "assert warm == (sys.argv[1] == '2'), (sys.argv[1], warm)\n"
+        "assert all(t.name != 'blendspace-warm-imports' for t in threading.enumerate())\n"
+    )
+    env = {**os.environ, "BLENDSPACE_CACHE_DIR": "off"}
+    for jobs in ("1", "2"):
+        subprocess.run([sys.executable, "-c", code, jobs], check=True, env=env, timeout=120)
 
 
 def test_builds_read_the_library_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
