@@ -304,6 +304,19 @@ def test_png_is_large_enough_and_markers_sit_where_projected(tmp_path: Path) -> 
     assert not list(tmp_path.glob("*.tmp*"))
 
 
+def test_png_bytes_are_the_rendered_image_as_oiio_converts_it(tmp_path: Path) -> None:
+    """`write_png` rounds the float pixels to 8 bits itself: the file holds what OIIO's own
+    conversion of `render`'s float image gives, pixel for pixel."""
+    from OpenImageIO import UINT8, ImageBuf
+
+    from blendspace_pipeline.report.png import render
+
+    doc = sample_document()
+    write_png(doc, tmp_path / "a.png")
+    written = ImageBuf(str(tmp_path / "a.png")).get_pixels(UINT8)
+    assert np.array_equal(written, render(doc).get_pixels(UINT8))
+
+
 def _pixel(pixels: np.ndarray, x: float, y: float) -> tuple[float, float, float]:
     row, column = round(y), round(x)
     return tuple(float(v) * 255.0 for v in pixels[row, column, :3])  # type: ignore[return-value]
