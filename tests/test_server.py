@@ -118,7 +118,41 @@ def test_a_served_command_keeps_the_exit_code_and_error_format(
     assert f"{manifest}:6:" in served.stderr and "Traceback" not in served.stderr
 
 
+def _as_a_terminal_starts_it() -> None:
+    """A command typed in a shell: SIGINT handled and not blocked, whatever this process inherited."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _with_sigint_blocked() -> None:
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+
 def test_ctrl_c_interrupts_a_served_command(server: dict[str, str], tmp_path: Path) -> None:
+    _interrupt_a_slow_rule(server, tmp_path)
+
+
+def test_ctrl_c_interrupts_a_command_of_a_server_started_with_sigint_blocked(tmp_path: Path) -> None:
+    """A blocked signal is inherited through fork and exec: a server started by a tool that
+    blocks SIGINT still lets Ctrl-C reach its commands."""
+    env = _env(tmp_path / "srv", tmp_path / "cache")
+    started = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "server", "start", "--idle-timeout", "600"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+        preexec_fn=_with_sigint_blocked,
+    )
+    assert started.returncode == 0, started.stderr
+    try:
+        _interrupt_a_slow_rule(env, tmp_path / "project")
+    finally:
+        assert _blendspace("server", "stop", env=env).returncode == 0
+
+
+def _interrupt_a_slow_rule(server: dict[str, str], tmp_path: Path) -> None:
     manifest = _project(tmp_path)
     plugins = tmp_path / "plugins"
     plugins.mkdir()
@@ -150,6 +184,7 @@ def test_ctrl_c_interrupts_a_served_command(server: dict[str, str], tmp_path: Pa
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=_as_a_terminal_starts_it,
     )
     deadline = time.monotonic() + 120
     while not started.exists() and time.monotonic() < deadline and process.poll() is None:

@@ -231,6 +231,9 @@ def _run_command(
         for number in (signal.SIGCHLD, signal.SIGTERM, signal.SIGHUP):
             signal.signal(number, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        # A blocked signal stays blocked through fork and exec: a server started by a tool that
+        # blocks SIGINT (a hook runner, a test harness mid-spawn) would make Ctrl-C pend forever.
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
         if listener is not None:
             listener.close()
         _take_streams(request["streams"], fds)
