@@ -128,6 +128,26 @@ def _with_sigint_blocked() -> None:
     signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
 
 
+def _stuck(process: subprocess.Popen[str], env: dict[str, str]) -> str:
+    """What to look at when an interrupted command hangs: the caller's signal state (a blocked or
+    ignored SIGINT is inherited), whether it still runs, and the server's log."""
+    lines = []
+    try:
+        status = Path(f"/proc/{process.pid}/status").read_text(encoding="utf-8")
+        lines += [line for line in status.splitlines() if line.startswith(("State", "Sig"))]
+    except OSError as error:
+        lines.append(f"no /proc status: {error}")
+    process.kill()
+    try:  # the server's command process holds the same pipes while it runs on
+        out, err = process.communicate(timeout=5)
+        lines += [f"stdout: {out[-1000:]}", f"stderr: {err[-1000:]}"]
+    except subprocess.TimeoutExpired:
+        lines.append("stdout and stderr still held open (by the server's command process)")
+    for log in Path(env[address.SERVER_DIR_VARIABLE]).glob("*.log"):
+        lines.append(f"{log}: {log.read_text(encoding='utf-8', errors='replace')[-2000:]}")
+    return "\n".join(lines)
+
+
 def test_ctrl_c_interrupts_a_served_command(server: dict[str, str], tmp_path: Path) -> None:
     _interrupt_a_slow_rule(server, tmp_path)
 
@@ -191,7 +211,10 @@ def _interrupt_a_slow_rule(server: dict[str, str], tmp_path: Path) -> None:
         time.sleep(0.1)
     assert started.exists(), process.communicate()
     process.send_signal(signal.SIGINT)
-    _out, err = process.communicate(timeout=60)
+    try:
+        _out, err = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"Ctrl-C did not stop the command within 60 s:\n{_stuck(process, server)}")
     assert process.returncode == 130, err
     assert "interrupted" in err
     assert _status(server)["served"] == 1  # type: ignore[index]
