@@ -463,7 +463,6 @@ def _motion(block: bytes | memoryview, data_start: int, header: BvhHeader, path:
     ``data_start``. The C parsers are tried in turn (see the module docstring); only a wrong
     count, a token they cannot read or a NaN/inf sends the reader line by line to name the culprit.
     """
-    global _parsed_bytes
     channels = header.channel_count
     if channels == 0:
         raise ClipReadError(
@@ -473,9 +472,16 @@ def _motion(block: bytes | memoryview, data_start: int, header: BvhHeader, path:
             hint="export the skeleton with its animation channels",
         )
     by_channel = _motion_native(block, header.frames, channels)
-    if by_channel is not None:
-        _check_magnitudes(by_channel, header, data_start, path)
-        return by_channel
+    if by_channel is None:
+        by_channel = _motion_python(block, data_start, header, path)
+    _check_magnitudes(by_channel, header, data_start, path)
+    return by_channel
+
+
+def _motion_python(block: bytes | memoryview, data_start: int, header: BvhHeader, path: Path) -> FloatArray:
+    """`_motion` without the compiled kernel: pyarrow, numpy, then the line-by-line walk."""
+    global _parsed_bytes
+    channels = header.channel_count
     _parsed_bytes += len(block)
     fast = len(block) >= ARROW_MIN_BLOCK and (
         _parsed_bytes > ARROW_AFTER_BYTES or "pyarrow.csv" in sys.modules
@@ -494,7 +500,6 @@ def _motion(block: bytes | memoryview, data_start: int, header: BvhHeader, path:
         if not (values.size == header.frames * channels and np.isfinite(values).all()):
             values = _motion_slow(data.split("\n"), data_start, header, path)
         by_channel = np.ascontiguousarray(values.reshape(header.frames, channels).T)
-    _check_magnitudes(by_channel, header, data_start, path)
     return by_channel
 
 
