@@ -17,6 +17,7 @@ setup(
             "blendspace_pipeline._kernels",
             ["blendspace_pipeline/_kernels.c"],
             extra_compile_args=ARGS,
+            libraries=[] if sys.platform == "win32" else ["m"],  # rint
             optional=True,
         )
     ]

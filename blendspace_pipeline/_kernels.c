@@ -1,4 +1,5 @@
-/* Compiled kernels of the measure stage's hottest loops (an optional extension module).
+/* Compiled kernels of the hottest loops: reading and posing clips, and drawing the PNG (an optional
+   extension module).
 
    Every function here is a faster way to a result the pure-Python code computes too, and must
    give that result to the bit: the callers fall back to numpy when the module is not built (no
@@ -15,12 +16,16 @@
        value Python's float(), numpy and pyarrow give. Anything else (another spelling, more
        digits, a wrong count) returns False, and the caller's parsers decide and name the line.
 
+   draw_lines, stamp_markers, blend_spans, box_mean
+       The PNG's rasteriser (report/png.py); see their comments below.
+
    The build passes -ffp-contract=off (setup.py): a fused multiply-add would round once where
    numpy rounds twice. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <float.h>
+#include <math.h>
 #include <stdint.h>
 
 /* x87 arithmetic (FLT_EVAL_METHOD 2) rounds to 80 bits first: the fast path would not be exact. */
@@ -211,7 +216,252 @@ static PyObject *forward_kinematics(PyObject *self, PyObject *args) {
     return PyBool_FromLong(ok);
 }
 
+/* ---- the PNG's rasteriser (report/png.py `_Pen`, `_blend_spans`, the box filter) ----------------
+
+   The canvas is the (height, width, 3) float32 image, C-contiguous. Each kernel is the numpy code
+   beside its caller, one IEEE operation at a time in numpy's order (float32 where numpy computes
+   in float32), and declines (False, the canvas untouched) whatever that code would read
+   differently: wrong sizes, spans outside the canvas, an index outside its table. */
+
+#define MAX_PIXEL (INT64_C(1) << 40)
+
+static int canvas_ok(const Py_buffer *canvas, Py_ssize_t height, Py_ssize_t width) {
+    return EXACT_DOUBLES && height >= 0 && width >= 0 &&
+           canvas->len == height * width * 3 * (Py_ssize_t)sizeof(float) && PyBuffer_IsContiguous(canvas, 'C');
+}
+
+static int int64s_ok(const Py_buffer *buffer, Py_ssize_t count) {
+    return buffer->len == count * (Py_ssize_t)sizeof(int64_t) && PyBuffer_IsContiguous(buffer, 'C');
+}
+
+/* draw_lines(canvas, height, width, starts, ends, (r, g, b)) -> bool
+   One-pixel lines from int64 (x, y) ``starts[i]`` to ``ends[i]``: max(|dx|, |dy|) + 1 pixels,
+   pixel k at rint(a + k / max(steps - 1, 1) * (b - a)) (`_Pen.lines`), opaque; pixels off the
+   canvas are skipped. */
+static PyObject *draw_lines(PyObject *self, PyObject *args) {
+    Py_buffer canvas, starts, ends;
+    Py_ssize_t height, width;
+    double r, g, b;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "w*nny*y*(ddd)", &canvas, &height, &width, &starts, &ends, &r, &g, &b))
+        return NULL;
+    Py_ssize_t lines = starts.len / (Py_ssize_t)(2 * sizeof(int64_t));
+    int ok = canvas_ok(&canvas, height, width) && int64s_ok(&starts, 2 * lines) && int64s_ok(&ends, 2 * lines);
+    /* A coordinate beyond 2^40 pixels (a NaN cast to int64) would overflow or never end. */
+    for (Py_ssize_t i = 0; ok && i < 2 * lines; i++) {
+        int64_t p = ((const int64_t *)starts.buf)[i], q = ((const int64_t *)ends.buf)[i];
+        if (p > MAX_PIXEL || p < -MAX_PIXEL || q > MAX_PIXEL || q < -MAX_PIXEL) ok = 0;
+    }
+    if (ok) {
+        const float colour[3] = {(float)r, (float)g, (float)b};
+        float *pixels = (float *)canvas.buf;
+        const int64_t *a = (const int64_t *)starts.buf, *e = (const int64_t *)ends.buf;
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t i = 0; i < lines; i++) {
+            int64_t ax = a[2 * i], ay = a[2 * i + 1], dx = e[2 * i] - ax, dy = e[2 * i + 1] - ay;
+            int64_t steps = (dx < 0 ? -dx : dx) > (dy < 0 ? -dy : dy) ? (dx < 0 ? -dx : dx) : (dy < 0 ? -dy : dy);
+            steps += 1;
+            double denominator = (double)(steps > 1 ? steps - 1 : 1);
+            for (int64_t k = 0; k < steps; k++) {
+                double along = (double)k / denominator;
+                int64_t x = (int64_t)rint((double)ax + along * (double)dx);
+                int64_t y = (int64_t)rint((double)ay + along * (double)dy);
+                if (x < 0 || x >= width || y < 0 || y >= height) continue;
+                float *pixel = pixels + (y * width + x) * 3;
+                pixel[0] = colour[0], pixel[1] = colour[1], pixel[2] = colour[2];
+            }
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&canvas);
+    PyBuffer_Release(&starts);
+    PyBuffer_Release(&ends);
+    return PyBool_FromLong(ok);
+}
+
+/* stamp_markers(canvas, height, width, centres, kinds, template, side, palette) -> bool
+   Marker i (int64 centre (x, y), kind k) stamps ``template[k]`` (int64, side x side, centred;
+   a palette index per pixel, -1 for none) onto the canvas, marker after marker: a later marker
+   covers an earlier one, as `_Pen.markers`' z-buffer keeps the last. ``palette``: float32 RGB. */
+static PyObject *stamp_markers(PyObject *self, PyObject *args) {
+    Py_buffer canvas, centres, kinds, template_buffer, palette_buffer;
+    Py_ssize_t height, width, side;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "w*nny*y*y*ny*", &canvas, &height, &width, &centres, &kinds, &template_buffer,
+                          &side, &palette_buffer))
+        return NULL;
+    Py_ssize_t markers = kinds.len / (Py_ssize_t)sizeof(int64_t);
+    Py_ssize_t cells = side > 0 ? side * side : 1;
+    Py_ssize_t templates = template_buffer.len / (Py_ssize_t)sizeof(int64_t) / cells;
+    Py_ssize_t colours = palette_buffer.len / (Py_ssize_t)(3 * sizeof(float));
+    int ok = canvas_ok(&canvas, height, width) && side > 0 && side % 2 == 1 && int64s_ok(&kinds, markers) &&
+             int64s_ok(&centres, 2 * markers) && int64s_ok(&template_buffer, templates * cells) &&
+             palette_buffer.len == colours * 3 * (Py_ssize_t)sizeof(float) &&
+             PyBuffer_IsContiguous(&palette_buffer, 'C');
+    const int64_t *kind = (const int64_t *)kinds.buf, *template = (const int64_t *)template_buffer.buf;
+    for (Py_ssize_t i = 0; ok && i < markers; i++)
+        if (kind[i] < 0 || kind[i] >= templates) ok = 0;
+    for (Py_ssize_t i = 0; ok && i < templates * cells; i++)
+        if (template[i] < -1 || template[i] >= colours) ok = 0;
+    if (ok) {
+        float *pixels = (float *)canvas.buf;
+        const float *palette = (const float *)palette_buffer.buf;
+        const int64_t *centre = (const int64_t *)centres.buf, reach = side / 2;
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t i = 0; i < markers; i++) {
+            const int64_t *cell = template + kind[i] * cells;
+            for (int64_t oy = 0; oy < side; oy++) {
+                int64_t y = centre[2 * i + 1] + oy - reach;
+                if (y < 0 || y >= height) continue;
+                for (int64_t ox = 0; ox < side; ox++) {
+                    int64_t x = centre[2 * i] + ox - reach, index = cell[oy * side + ox];
+                    if (index < 0 || x < 0 || x >= width) continue;
+                    float *pixel = pixels + (y * width + x) * 3;
+                    const float *colour = palette + index * 3;
+                    pixel[0] = colour[0], pixel[1] = colour[1], pixel[2] = colour[2];
+                }
+            }
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&canvas);
+    PyBuffer_Release(&centres);
+    PyBuffer_Release(&kinds);
+    PyBuffer_Release(&template_buffer);
+    PyBuffer_Release(&palette_buffer);
+    return PyBool_FromLong(ok);
+}
+
+/* blend_spans(canvas, height, width, rows, first, last, levels, (r, g, b), period, on) -> bool
+   Pixel-row spans (int64 row, first and last column, inclusive, inside the canvas) of shapes
+   of one colour: a pixel covered by k of them becomes v + L * (colour - v), in float32, with
+   L = levels[min(k, len(levels) - 1)] (float32; `_blend_spans`). With ``period`` > 0 only the
+   pixels where (row + column) % period < ``on`` (the hatching's stripes). Spans are counted
+   row by row (a difference array along the row), so the memory is the spans plus one row. */
+static PyObject *blend_spans(PyObject *self, PyObject *args) {
+    Py_buffer canvas, rows_buffer, first_buffer, last_buffer, levels_buffer;
+    Py_ssize_t height, width, period, on;
+    double r, g, b;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "w*nny*y*y*y*(ddd)nn", &canvas, &height, &width, &rows_buffer, &first_buffer,
+                          &last_buffer, &levels_buffer, &r, &g, &b, &period, &on))
+        return NULL;
+    Py_ssize_t spans = rows_buffer.len / (Py_ssize_t)sizeof(int64_t);
+    Py_ssize_t steps = levels_buffer.len / (Py_ssize_t)sizeof(float);
+    int ok = canvas_ok(&canvas, height, width) && int64s_ok(&rows_buffer, spans) &&
+             int64s_ok(&first_buffer, spans) && int64s_ok(&last_buffer, spans) && steps > 0 &&
+             levels_buffer.len == steps * (Py_ssize_t)sizeof(float) && PyBuffer_IsContiguous(&levels_buffer, 'C') &&
+             period >= 0;
+    const int64_t *row = (const int64_t *)rows_buffer.buf, *first = (const int64_t *)first_buffer.buf,
+                  *last = (const int64_t *)last_buffer.buf;
+    for (Py_ssize_t s = 0; ok && s < spans; s++)
+        if (row[s] < 0 || row[s] >= height || first[s] < 0 || first[s] > last[s] || last[s] >= width) ok = 0;
+    Py_ssize_t *start = NULL, *order = NULL;
+    int64_t *difference = NULL;
+    if (ok && spans) {
+        start = (Py_ssize_t *)PyMem_RawCalloc((size_t)height + 1, sizeof(Py_ssize_t));
+        order = (Py_ssize_t *)PyMem_RawMalloc((size_t)spans * sizeof(Py_ssize_t));
+        difference = (int64_t *)PyMem_RawCalloc((size_t)width + 1, sizeof(int64_t));
+        if (start == NULL || order == NULL || difference == NULL) {
+            PyMem_RawFree(start), PyMem_RawFree(order), PyMem_RawFree(difference);
+            PyBuffer_Release(&canvas), PyBuffer_Release(&rows_buffer), PyBuffer_Release(&first_buffer);
+            PyBuffer_Release(&last_buffer), PyBuffer_Release(&levels_buffer);
+            return PyErr_NoMemory();
+        }
+    }
+    if (ok && spans) {
+        const float colour[3] = {(float)r, (float)g, (float)b};
+        const float *levels = (const float *)levels_buffer.buf;
+        float *pixels = (float *)canvas.buf;
+        Py_BEGIN_ALLOW_THREADS
+        /* The spans by row (a counting sort): start[y] .. start[y + 1] are row y's. */
+        for (Py_ssize_t s = 0; s < spans; s++) start[row[s] + 1]++;
+        for (Py_ssize_t y = 0; y < height; y++) start[y + 1] += start[y];
+        for (Py_ssize_t s = 0; s < spans; s++) order[start[row[s]]++] = s;
+        for (Py_ssize_t y = height; y > 0; y--) start[y] = start[y - 1];
+        start[0] = 0;
+        for (Py_ssize_t y = 0; y < height; y++) {
+            if (start[y] == start[y + 1]) continue;
+            int64_t low = width, high = -1;
+            for (Py_ssize_t i = start[y]; i < start[y + 1]; i++) {
+                Py_ssize_t s = order[i];
+                difference[first[s]] += 1;
+                difference[last[s] + 1] -= 1;
+                if (first[s] < low) low = first[s];
+                if (last[s] > high) high = last[s];
+            }
+            int64_t count = 0;
+            for (int64_t x = low; x <= high; x++) {
+                count += difference[x];
+                difference[x] = 0;
+                if (count <= 0 || (period > 0 && (y + x) % period >= on)) continue;
+                float level = levels[count < steps ? count : steps - 1];
+                float *pixel = pixels + (y * width + x) * 3;
+                for (int c = 0; c < 3; c++) {
+                    float change = colour[c] - pixel[c];
+                    change = level * change;
+                    pixel[c] = pixel[c] + change;
+                }
+            }
+            difference[high + 1] = 0;
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyMem_RawFree(start);
+    PyMem_RawFree(order);
+    PyMem_RawFree(difference);
+    PyBuffer_Release(&canvas);
+    PyBuffer_Release(&rows_buffer);
+    PyBuffer_Release(&first_buffer);
+    PyBuffer_Release(&last_buffer);
+    PyBuffer_Release(&levels_buffer);
+    return PyBool_FromLong(ok);
+}
+
+/* box_mean(canvas, height, width, out, scale) -> bool
+   The mean of every scale x scale block of the canvas into ``out`` ((height / scale,
+   width / scale, 3) float32): 0 + the block's first pixel, plus the others in row-major order,
+   divided by scale * scale, in float32, as `_pixels` sums the strided views. */
+static PyObject *box_mean(PyObject *self, PyObject *args) {
+    Py_buffer canvas, out;
+    Py_ssize_t height, width, scale;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "y*nnw*n", &canvas, &height, &width, &out, &scale)) return NULL;
+    int ok = canvas_ok(&canvas, height, width) && scale > 0 && height % scale == 0 && width % scale == 0 &&
+             canvas_ok(&out, height / scale, width / scale);
+    if (ok) {
+        const float *in = (const float *)canvas.buf;
+        float *mean = (float *)out.buf;
+        const float blocks = (float)(scale * scale);
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t y = 0; y < height / scale; y++)
+            for (Py_ssize_t x = 0; x < width / scale; x++)
+                for (int c = 0; c < 3; c++) {
+                    float sum = 0.0f + in[((y * scale) * width + x * scale) * 3 + c];
+                    for (Py_ssize_t dy = 0; dy < scale; dy++)
+                        for (Py_ssize_t dx = dy ? 0 : 1; dx < scale; dx++)
+                            sum += in[((y * scale + dy) * width + x * scale + dx) * 3 + c];
+                    mean[(y * (width / scale) + x) * 3 + c] = sum / blocks;
+                }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&canvas);
+    PyBuffer_Release(&out);
+    return PyBool_FromLong(ok);
+}
+
 static PyMethodDef methods[] = {
+    {"draw_lines", draw_lines, METH_VARARGS,
+     "draw_lines(canvas, height, width, starts, ends, rgb) -> bool: one-pixel lines, as _Pen.lines draws them."},
+    {"stamp_markers", stamp_markers, METH_VARARGS,
+     "stamp_markers(canvas, height, width, centres, kinds, template, side, palette) -> bool: markers in "
+     "order, a later one on top."},
+    {"blend_spans", blend_spans, METH_VARARGS,
+     "blend_spans(canvas, height, width, rows, first, last, levels, rgb, period, on) -> bool: translucent "
+     "pixel-row spans, k overlapping ones at levels[k]."},
+    {"box_mean", box_mean, METH_VARARGS,
+     "box_mean(canvas, height, width, out, scale) -> bool: the mean of every scale x scale block."},
+
     {"forward_kinematics", forward_kinematics, METH_VARARGS,
      "forward_kinematics(local_rot, local_pos, parents, world_rot, world_pos, frames) -> bool: world "
      "transforms of every joint, numpy's to the bit, or False to let numpy compute them."},
@@ -223,7 +473,7 @@ static PyMethodDef methods[] = {
 
 static struct PyModuleDef module = {
     PyModuleDef_HEAD_INIT, "_kernels",
-    "Compiled kernels of the measure stage (optional; see _kernels.c).", -1, methods,
+    "Compiled kernels: BVH numbers, forward kinematics, the PNG rasteriser (optional; see _kernels.c).", -1, methods,
 };
 
 PyMODINIT_FUNC PyInit__kernels(void) { return PyModule_Create(&module); }

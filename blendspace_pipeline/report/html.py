@@ -26,7 +26,14 @@ from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.report import tables
 from blendspace_pipeline.report.atomic import atomic_path
-from blendspace_pipeline.report.diagram import Layout, Scene, axis_ranges, build_scene, convex_hull
+from blendspace_pipeline.report.diagram import (
+    Layout,
+    Scene,
+    axis_ranges,
+    build_scene,
+    convex_hull,
+    triangle_edges,
+)
 from blendspace_pipeline.report.heatmap import css_gradient, heat_rgba, png_data_uri, scale_maximum
 from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map, is_lod, lod_data
 from blendspace_pipeline.report.trajectory_error import (
@@ -421,11 +428,9 @@ def _engine_figure(
     triangles = [list(t) for t in doc.triangles]
     normalised = normalise(placed, axes)
     points = _pixels(scene, normalised)
-    used = sorted({i for t in triangles for i in t})
+    used = np.unique(np.asarray(triangles, dtype=np.int64)).tolist()
     hull = _pixels(scene, np.asarray(convex_hull(normalised[used]))) if used else []
-    edges = sorted(
-        {(min(t[i], t[(i + 1) % 3]), max(t[i], t[(i + 1) % 3])) for t in triangles for i in range(3)}
-    )
+    edges = triangle_edges(triangles)
     view = HeatView("measured", png_data_uri(heat_rgba(values, top)), points, edges, hull)
     bar = (
         f'<div class="colour-bar"><span class="bar" style="background:{css_gradient()}"></span>'
@@ -476,11 +481,9 @@ def _heat_view(
         triangles = [list(t) for t in doc.triangles]
     normalised = normalise(placed, axes)
     points = _pixels(scene, normalised)
-    used = sorted({i for t in triangles for i in t})
+    used = np.unique(np.asarray(triangles, dtype=np.int64)).tolist()
     hull = _pixels(scene, np.asarray(convex_hull(normalised[used]))) if used else []
-    edges = sorted(
-        {(min(t[i], t[(i + 1) % 3]), max(t[i], t[(i + 1) % 3])) for t in triangles for i in range(3)}
-    )
+    edges = triangle_edges(triangles)
     arrows = []
     if mode == "manual":
         measured = _pixels(scene, normalise(measured_positions(doc), axes))
