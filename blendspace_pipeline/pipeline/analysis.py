@@ -45,7 +45,7 @@ def analyse(
         space.layer_spaces = analyse_layers(space, analyse_beta, jobs=jobs, progress=progress)
     finish_analysis(space)
     if converge:
-        converge_placeholders(space)
+        converge_placeholders(space, jobs=jobs)
     return space
 
 

@@ -75,7 +75,7 @@ class FixState:
     rejected: list[Diagnostic] = field(default_factory=list)  # fix-rejected findings
 
 
-def apply_fixes(space: BlendSpace) -> tuple[BlendSpace, FixState]:
+def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]:
     """Apply the manifest's `fixes:` one at a time, keeping each only if it improves the space."""
     state = FixState()
     fixer = _Fixer(space, state)
@@ -98,7 +98,7 @@ def apply_fixes(space: BlendSpace) -> tuple[BlendSpace, FixState]:
                 progress |= kept
         if not progress:
             break
-    converge_placeholders(space)
+    converge_placeholders(space, jobs=jobs)
     space.diagnostics = sorted(
         space.diagnostics + state.skipped + state.rejected + _removals(space, fixer), key=Diagnostic.sort_key
     )

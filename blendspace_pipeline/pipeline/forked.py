@@ -14,6 +14,9 @@ same line). The child's traceback is attached as a note, so the crash log still 
 failed. A child that dies without a word (a signal, the OOM killer) is an internal error.
 
 Without fork, with ``jobs`` 1, or with one task, the tasks run here in order, as before.
+
+A task may return a value (`results_of`): it is pickled back, so it should be small (a set of
+finding keys, a number), never a clip.
 """
 
 from __future__ import annotations
@@ -27,8 +30,10 @@ import signal
 import sys
 import traceback
 from collections.abc import Callable, Sequence
+from typing import Any
 
-Task = Callable[[], None]
+Task = Callable[[], Any]
+_VALUE = b"\x00"  # a result payload that is a returned value (a pickled error starts with 0x80)
 
 
 def can_fork() -> bool:
@@ -48,6 +53,19 @@ def run_tasks(tasks: Sequence[Task], jobs: int, start_order: Sequence[int] | Non
         raise errors[min(errors)]
 
 
+def results_of(tasks: Sequence[Task], jobs: int) -> list[Any]:
+    """Every task's return value, in order: the first here, the others in up to ``jobs`` - 1
+    forked children meanwhile. Errors as `run_tasks` raises them (the serial order decides)."""
+    if jobs < 2 or len(tasks) < 2 or not can_fork():
+        return [task() for task in tasks]
+    with Children(tasks[1:], jobs - 1) as children:
+        first = tasks[0]()  # a failure here is the serial one: leaving the block kills the others
+        errors = children.wait()
+    if errors:
+        raise errors[min(errors)]
+    return [first] + [children.results.get(index) for index in range(len(tasks) - 1)]
+
+
 class Children:
     """``tasks`` in forked children, started at once (at most ``limit`` at a time; the others
     start as running ones finish while `wait` waits). Leaving the ``with`` block kills and reaps
@@ -57,6 +75,7 @@ class Children:
         self.tasks = list(tasks)
         self.limit = max(1, limit)
         self.errors: dict[int, BaseException] = {}
+        self.results: dict[int, Any] = {}  # what a task returned, when it is not None
         self.running: dict[int, tuple[int, int, bytearray]] = {}  # read end -> (index, pid, bytes)
         self.waiting = list(start_order) if start_order is not None else list(range(len(self.tasks)))
         assert sorted(self.waiting) == list(range(len(self.tasks))), "start_order must name every task once"
@@ -90,9 +109,11 @@ class Children:
                     continue
                 del self.running[read_end]  # end of file: the child is done
                 os.close(read_end)
-                error = _finish(pid, bytes(data))
+                error, value = _finish(pid, bytes(data))
                 if error is not None:
                     self.errors[index] = error
+                elif value is not None:
+                    self.results[index] = value
         return self.errors
 
     def kill(self) -> None:
@@ -143,9 +164,12 @@ def _start(task: Task) -> tuple[int, int]:
 
 
 def _result_of(task: Task) -> bytes:
-    """b"" when ``task`` succeeded, else its exception pickled (or a stand-in that pickles)."""
+    """b"" when ``task`` succeeded and returned None, `_VALUE` and the value pickled when it
+    returned one, else its exception pickled (or a stand-in that pickles)."""
     try:
-        task()
+        value = task()
+        if value is not None:
+            return _VALUE + pickle.dumps(value)
     except BaseException as error:  # every failure goes back to the parent, exit codes decided there
         detail = "".join(traceback.format_exception(error))
         try:
@@ -159,13 +183,16 @@ def _result_of(task: Task) -> bytes:
     return b""
 
 
-def _finish(pid: int, data: bytes) -> BaseException | None:
-    """Reap the child ``pid``; its error (None when it succeeded)."""
+def _finish(pid: int, data: bytes) -> tuple[BaseException | None, Any]:
+    """Reap the child ``pid``; its error (None when it succeeded) and the value it returned."""
     _, status = os.waitpid(pid, 0)
-    if not data:
-        if os.waitstatus_to_exitcode(status) == 0:
-            return None
-        return RuntimeError(f"a writer process ended without a result ({_how(status)})")
+    exited = os.waitstatus_to_exitcode(status) == 0
+    if not data or (data.startswith(_VALUE) and not exited):
+        if exited:
+            return None, None
+        return RuntimeError(f"a writer process ended without a result ({_how(status)})"), None
+    if data.startswith(_VALUE):
+        return None, pickle.loads(data[len(_VALUE) :])
     payload, detail = pickle.loads(data)
     error = pickle.loads(payload)
     if isinstance(error, tuple):  # did not pickle: the same class name and text
@@ -173,7 +200,7 @@ def _finish(pid: int, data: bytes) -> BaseException | None:
         error = type(name, (Exception,), {})(text)
     assert isinstance(error, BaseException)
     error.add_note(f"raised in a forked writer process:\n{detail}")
-    return error
+    return error, None
 
 
 def _how(status: int) -> str:

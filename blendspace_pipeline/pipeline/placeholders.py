@@ -18,14 +18,16 @@ opposite, an in-place clip, its cadence) is not counted against it; where it sit
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
 from blendspace_pipeline.checks.rule_engine import run_rules
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
 from blendspace_pipeline.manifest.models import ClipEntry
+from blendspace_pipeline.pipeline.forked import results_of
 from blendspace_pipeline.space.hull import hull_coverage
 from blendspace_pipeline.space.model import BlendSpace, MeasuredClip, assemble
 
@@ -41,27 +43,28 @@ MAX_TRIES = 12  # simulations per placeholder (each is a placement, triangulatio
 MAX_SIMULATIONS = 96
 BUDGET = 2_000
 SEVERE = ("error", "warning")
+# Simulations run side by side (`--jobs`) from this many samples: a fork costs 5-10 ms, a
+# simulation ~2 ms on the 13-clip sample project and ~80 ms at 1,000 clips.
+PARALLEL_FROM = 300
 
 Key = tuple[object, ...]
 
 
-def converge_placeholders(space: BlendSpace) -> None:
-    """Check every suggested placeholder of ``space`` by simulation; move or drop the bad ones."""
+def converge_placeholders(space: BlendSpace, jobs: int = 1) -> None:
+    """Check every suggested placeholder of ``space`` by simulation; move or drop the bad ones.
+
+    ``jobs`` > 1: when a simulation is needed, the ones the search would make next if this one
+    failed are made at the same time in forked processes (`_Trials`): the search then finds them
+    done when it gets there. It still makes the same trials in the same order, so the outcome is
+    the serial one."""
     if len(space.samples) < 3 or not any(
         p.priority == "suggested" for d in space.diagnostics for p in d.placeholders
     ):
         return
     before = _keys(space.diagnostics)
     coverage = _coverage(space)
-    cache: dict[tuple[object, ...], tuple[set[Key], float]] = {}
     budget = [min(MAX_SIMULATIONS, BUDGET // max(len(space.samples), 1))]
-
-    def simulate(point: tuple[float, float], without: tuple[str, ...]) -> tuple[set[Key], float]:
-        key = (round(point[0], 9), round(point[1], 9), *without)
-        if key not in cache:
-            trial = _with_virtual(space, point, without)
-            cache[key] = (_keys(trial.diagnostics, virtual=True), _coverage(trial))
-        return cache[key]
+    trials = _Trials(space, jobs if len(space.samples) >= PARALLEL_FROM else 1)
 
     changed: list[Diagnostic] = []
     for diagnostic in space.diagnostics:
@@ -69,8 +72,6 @@ def converge_placeholders(space: BlendSpace) -> None:
             changed.append(diagnostic)
             continue
         own = _key(diagnostic)
-        # A too-close marker is where the cluster's merge would go: it replaces the members.
-        without = diagnostic.clips if diagnostic.rule == "too-close" else ()
         marks: list[Placeholder] = []
         lost = 0
         moved: list[tuple[float, float]] = []
@@ -81,13 +82,15 @@ def converge_placeholders(space: BlendSpace) -> None:
                 continue
             found = None
             if budget[0] <= 0:
+                trials.next_mark()
                 unchecked = True  # never suggested unchecked: it might add a finding
                 continue
-            for point in _candidates(space, diagnostic, mark, without)[:MAX_TRIES]:
+            index = trials.next_mark()
+            for tried, point in enumerate(trials.candidates(index)):
                 if budget[0] <= 0:
                     break
                 budget[0] -= 1
-                after, covered = simulate(point, without)
+                after, covered = trials.simulate(index, tried, budget[0])
                 cured = covered > coverage + 1e-9 if diagnostic.rule == "uncovered-area" else own not in after
                 if cured and not (after - before):
                     found = point
@@ -116,6 +119,86 @@ def converge_placeholders(space: BlendSpace) -> None:
         changed.append(replace(diagnostic, placeholders=tuple(_unique(marks))))
     space.diagnostics = changed
     space.placeholders = _unique(p for d in changed for p in d.placeholders)
+
+
+class _Trials:
+    """The simulations of one search, remembered by position, and the suggested placeholders in
+    the order the search visits them (`next_mark` counts them off)."""
+
+    def __init__(self, space: BlendSpace, jobs: int) -> None:
+        self.space, self.jobs = space, jobs
+        # A too-close marker is where the cluster's merge would go: it replaces the members.
+        self.marks = [
+            (d, mark, d.clips if d.rule == "too-close" else ())
+            for d in space.diagnostics
+            for mark in d.placeholders
+            if mark.priority == "suggested"
+        ]
+        self.visited = 0
+        self.done: dict[Key, tuple[set[Key], float]] = {}
+        self._candidates: dict[int, list[tuple[float, float]]] = {}
+
+    def next_mark(self) -> int:
+        self.visited += 1
+        return self.visited - 1
+
+    def candidates(self, at: int) -> list[tuple[float, float]]:
+        """The positions tried for mark ``at``, in order (at most `MAX_TRIES`)."""
+        if at not in self._candidates:
+            diagnostic, mark, without = self.marks[at]
+            self._candidates[at] = _candidates(self.space, diagnostic, mark, without)[:MAX_TRIES]
+        return self._candidates[at]
+
+    def simulate(self, at: int, tried: int, budget_left: int) -> tuple[set[Key], float]:
+        """The errors and warnings with a clip at candidate ``tried`` of mark ``at``, and the
+        coverage.
+
+        A new simulation takes along, up to ``jobs`` in all and no more than the budget left
+        could use, the trials that follow it when it fails: the mark's next candidates, then the
+        next marks'. Most candidates fail (a 1,000-clip library's marks took 4 trials, the
+        sample project's 1 or 12: benchmarks/bench_placeholders.py), so that is the search's
+        likeliest path."""
+        without = self.marks[at][2]
+        key = _trial_key(self.candidates(at)[tried], without)
+        if key not in self.done:
+            batch: list[tuple[tuple[float, float], tuple[str, ...]]] = []
+            mark, index = at, tried
+            while len(batch) < min(self.jobs, 1 + budget_left) and mark < len(self.marks):
+                if index >= len(self.candidates(mark)):
+                    mark, index = mark + 1, 0
+                    continue
+                trial = (self.candidates(mark)[index], self.marks[mark][2])
+                if not batch or (_trial_key(*trial) not in self.done and trial not in batch):
+                    batch.append(trial)
+                index += 1
+            tasks: list[Callable[[], tuple[set[Key], float] | None]] = [
+                functools.partial(_trial, self.space, *batch[0])
+            ]
+            tasks += [functools.partial(_ahead, self.space, *trial) for trial in batch[1:]]
+            for trial, result in zip(batch, results_of(tasks, self.jobs), strict=True):
+                if result is not None:  # a look-ahead that failed: the search decides if it matters
+                    self.done[_trial_key(*trial)] = result
+        return self.done[key]
+
+
+def _trial_key(point: tuple[float, float], without: tuple[str, ...]) -> Key:
+    return (round(point[0], 9), round(point[1], 9), *without)
+
+
+def _trial(space: BlendSpace, point: tuple[float, float], without: tuple[str, ...]) -> tuple[set[Key], float]:
+    trial = _with_virtual(space, point, without)
+    return _keys(trial.diagnostics, virtual=True), _coverage(trial)
+
+
+def _ahead(
+    space: BlendSpace, point: tuple[float, float], without: tuple[str, ...]
+) -> tuple[set[Key], float] | None:
+    """`_trial` for a look-ahead: a rule that fails here fails again, in order, if the search
+    comes to it; an error now would be one the serial search might never raise."""
+    try:
+        return _trial(space, point, without)
+    except Exception:
+        return None
 
 
 def _candidates(
