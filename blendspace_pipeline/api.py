@@ -42,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
 from blendspace_pipeline.features import FEATURE_UNITS
 from blendspace_pipeline.space.placement import Axis
+from blendspace_pipeline.space.triangulate import triangle_edges
 
 __all__ = [
     "Axis",
@@ -206,13 +207,8 @@ class SpaceView:
 
     @cached_property
     def _edges(self) -> tuple[tuple[int, int], ...]:
-        # Computed once per view (several rules walk the edges): each triangle's three edges with
-        # their ends in order, de-duplicated; np.unique sorts the rows as `sorted` sorts tuples.
-        if not self.triangles:
-            return ()
-        corners = np.asarray(self.triangles, dtype=np.int64).reshape(-1, 3)
-        pairs = np.sort(np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]]), axis=1)
-        return tuple((a, b) for a, b in np.unique(pairs, axis=0).tolist())
+        # Computed once per view (several rules walk the edges), in the order `sorted` gives.
+        return tuple(triangle_edges(self.triangles))
 
     # Vectorised views, for rules that must scale to thousands of samples: read-only numpy
     # arrays in sample order, computed once per view and shared by every rule.

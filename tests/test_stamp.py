@@ -124,3 +124,20 @@ def test_bad_input_is_never_stamped(
     assert main(["check", str(manifest)]) == 2
     assert counter.analyses == 2
     assert "missing.bvh" in capsys.readouterr().err
+
+
+def test_the_fast_json_round_trips_every_float_and_name_and_the_standard_parser_reads_it() -> None:
+    """Packs and stamps are written by pydantic-core; `stamp.replay` reads them with `json`."""
+    import json
+    import math
+
+    from blendspace_pipeline.pipeline import cache
+
+    floats = [0.1, -0.0, 1e16, 1e-7, 5e-324, 1.7976931348623157e308, 2.0 / 3.0, 123456789.123456789]
+    value = {"names": ["walk_ü", "跑", 'quote " and \\ back', "tab\tnew\nline"], "floats": floats, "n": None}
+    text = cache.dumps(value)
+    for back in (cache.loads(text.encode()), json.loads(text)):
+        assert back == value
+        assert [math.copysign(1.0, f) for f in back["floats"]] == [math.copysign(1.0, f) for f in floats]
+    odd = cache.loads(cache.dumps({"x": [math.nan, math.inf, -math.inf]}).encode())["x"]
+    assert math.isnan(odd[0]) and odd[1:] == [math.inf, -math.inf]

@@ -35,7 +35,9 @@ from blendspace_pipeline.pipeline.cache import (
     MEASUREMENT_REVISION,
     cache_dir,
     content_digest,
+    dumps,
     file_sha256,
+    loads,
     write_atomic,
 )
 
@@ -120,7 +122,8 @@ def replay(key: str) -> int | None:
     if path is None:
         return None
     try:
-        stamp: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        # The standard parser: the no-op path must not import pydantic-core (55 ms).
+        stamp: dict[str, Any] = json.loads(path.read_bytes())
         files = [FileState(**entry) for entry in stamp["inputs"] + stamp["outputs"]]
         printed, code = str(stamp["stdout"]), int(stamp["exit_code"])
     except (OSError, ValueError, KeyError, TypeError):
@@ -146,7 +149,7 @@ def record(key: str, inputs: Iterable[Path], outputs: Iterable[Path], printed: s
         "stdout": printed,
         "exit_code": exit_code,
     }
-    write_atomic(path, json.dumps(stamp))
+    write_atomic(path, dumps(stamp))
 
 
 def _as_dict(state: FileState) -> dict[str, object]:
@@ -158,7 +161,7 @@ def _as_dict(state: FileState) -> dict[str, object]:
 def _previous_states(path: Path) -> dict[str, FileState]:
     """The files of the stamp ``path`` holds now (the previous run's), by path; {} when none."""
     try:
-        stamp: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+        stamp: dict[str, Any] = loads(path.read_bytes())
         return {entry["path"]: FileState(**entry) for entry in stamp["inputs"] + stamp["outputs"]}
     except (OSError, ValueError, KeyError, TypeError):
         return {}

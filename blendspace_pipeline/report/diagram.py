@@ -17,6 +17,7 @@ import numpy as np
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument, DiagnosticDoc
 from blendspace_pipeline.space.geometry import NORMALISED_EXTENT, AxisRange, normalise
+from blendspace_pipeline.space.triangulate import triangle_edges
 
 Point = tuple[float, float]
 ProblemKind = Literal["edge", "polygon", "rings", "circle", "region", "point"]
@@ -158,18 +159,6 @@ def ticks(axis: AxisDoc, to_pixel: tuple[float, float], target: int = 8) -> list
         pixel = to_pixel[0] + fraction * (to_pixel[1] - to_pixel[0])
         result.append(Tick(value, pixel, f"{value:g}"))
     return result
-
-
-def triangle_edges(triangles: list[list[int]]) -> list[tuple[int, int]]:
-    """Each triangle edge once, (low, high) sample indices, sorted."""
-    if not len(triangles):
-        return []
-    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    pairs = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
-    pairs.sort(axis=1)
-    span = int(pairs.max()) + 1
-    keys = np.unique(pairs[:, 0] * span + pairs[:, 1])  # one integer per edge: a 1-D sort
-    return list(zip((keys // span).tolist(), (keys % span).tolist(), strict=True))
 
 
 def convex_hull(points: FloatArray) -> list[Point]:

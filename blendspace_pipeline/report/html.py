@@ -32,7 +32,6 @@ from blendspace_pipeline.report.diagram import (
     axis_ranges,
     build_scene,
     convex_hull,
-    triangle_edges,
 )
 from blendspace_pipeline.report.heatmap import css_gradient, heat_rgba, png_data_uri, scale_maximum
 from blendspace_pipeline.report.svg import LABEL_LIMIT, HeatView, diagram, heat_map, is_lod, lod_data
@@ -47,6 +46,7 @@ from blendspace_pipeline.report.trajectory_error import (
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, ClipInfoDoc, DiagnosticDoc
 from blendspace_pipeline.space.geometry import normalise
 from blendspace_pipeline.space.runtime_blend import DEFAULT_HORIZON, runtime_grid
+from blendspace_pipeline.space.triangulate import triangle_edges
 
 # Foot sliding below this (m/s) is scaled as if it were the maximum: a few cm/s is invisible.
 SKATE_SCALE = 0.2

@@ -8,6 +8,7 @@ all on one line) give no triangles and a reason the build reports.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,3 +69,15 @@ def _areas(points: FloatArray, tris: np.ndarray) -> FloatArray:
         (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
     )
     return area
+
+
+def triangle_edges(triangles: Sequence[Sequence[int]]) -> list[tuple[int, int]]:
+    """Each triangle edge once, (low, high) sample indices, sorted."""
+    if not len(triangles):
+        return []
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    pairs = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    pairs.sort(axis=1)
+    span = int(pairs.max()) + 1
+    keys = np.unique(pairs[:, 0] * span + pairs[:, 1])  # one integer per edge: a 1-D sort
+    return list(zip((keys // span).tolist(), (keys % span).tolist(), strict=True))
