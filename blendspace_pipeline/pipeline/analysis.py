@@ -7,6 +7,7 @@ readers at the start and the writers at the end, so `check` runs everything but 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from blendspace_pipeline.checks.locate_diagnostics import anchor
@@ -27,11 +28,14 @@ def analyse(
     progress: Progress | None = None,
     with_layers: bool = True,
     converge: bool = True,
+    on_placed: Callable[[BlendSpace], None] | None = None,
 ) -> BlendSpace:
     """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules.
 
     ``converge``: check the suggested placeholders by simulation (`placeholders`); `build` leaves
     it to the end of the fix loop, whose last space is the one it reports.
+    ``on_placed``: called with the space once it is placed, triangulated and has its layers,
+    before the rules (`build` starts the blend quality maps there: `early_quality`).
     """
     loaded = load_manifest(manifest_path)
     files = resolve_clip_files(loaded)
@@ -43,6 +47,8 @@ def analyse(
             return analyse(path, jobs=jobs, progress=progress, with_layers=False, converge=converge)
 
         space.layer_spaces = analyse_layers(space, analyse_beta, jobs=jobs, progress=progress)
+    if on_placed is not None:
+        on_placed(space)
     finish_analysis(space)
     if converge:
         converge_placeholders(space, jobs=jobs)

@@ -58,6 +58,7 @@ from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.cache import cache_dir, file_sha256, write_atomic
+from blendspace_pipeline.pipeline.early_quality import EarlyQuality
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.forked import Children, Task, can_fork, run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
@@ -254,13 +255,14 @@ def write_outputs(
     fixes: FixState | None = None,
     layer_fixes: dict[str, FixState] | None = None,
     jobs: int = 1,
+    maps: EarlyQuality | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
     disk full) is bad input, exit 2, and leaves nothing behind. ``jobs``: processes for the
-    foot-skate map's blends."""
+    foot-skate map's blends; ``maps``: the blend quality maps, already under way (`early_quality`)."""
     try:
         with _usd_errors_as_os_errors():
-            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {}, jobs)
+            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {}, jobs, maps)
     except OSError as error:
         where = error.filename or out_dir
         raise InputError(
@@ -296,6 +298,7 @@ def _write_outputs(
     fixes: FixState,
     layer_fixes: dict[str, FixState],
     jobs: int = 1,
+    maps: EarlyQuality | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -370,14 +373,20 @@ def _write_outputs(
 
         with Children([tasks[name] for name in started], len(started)) as children:
             # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
-            document.blend_quality = blend_quality(
-                space,
-                document,
-                {n: g.clip for n, g in fixes.generated.items()},
-                sync=space.manifest.model.blend.sync,
-                jobs=jobs,
-                meanwhile=meanwhile,
-            )
+            quality = None
+            if maps is not None:
+                meanwhile()  # the outputs beside the maps, while the early child finishes them
+                quality = maps.result(document)
+            if quality is None:
+                quality = blend_quality(
+                    space,
+                    document,
+                    {n: g.clip for n, g in fixes.generated.items()},
+                    sync=space.manifest.model.blend.sync,
+                    jobs=jobs,
+                    meanwhile=meanwhile,
+                )
+            document.blend_quality = quality
             meanwhile()  # when the map had no workers to wait for
             staged: list[Path] = []  # relative to staging (and to out_dir)
             for sub, state, folder in made:
@@ -628,18 +637,35 @@ def build(
     progress: Progress | None = None,
     fix: bool = True,
 ) -> BuildResult:
-    # With fixes on, placeholders are checked on the space the fix loop leaves (`apply_fixes`).
-    space = analyse(manifest, jobs=jobs, progress=progress, converge=not fix)
-    fixes = FixState()
-    layer_fixes: dict[str, FixState] = {}
-    if fix:
-        space, fixes = apply_fixes(space, jobs=jobs)
-        for layer in space.layer_spaces:  # a beta layer is a blend space: its own `fixes:` apply
-            if isinstance(layer, BetaSpace):
-                layer.space, layer_fixes[layer.name] = apply_fixes(layer.space, jobs=jobs)
-    out_dir = output_dir(space, out)
-    formats = list(dict.fromkeys(space.manifest.model.output.formats))
-    document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes, jobs)
+    early: EarlyQuality | None = None
+
+    def start_early(placed: BlendSpace) -> None:
+        # Without fixes the placed samples are the final ones: their blend quality maps can be
+        # made on another core while this one runs the rules (`early_quality`).
+        nonlocal early
+        if not fix and jobs > 1 and can_fork():
+            try:
+                folder = output_dir(placed, out)
+            except Exception:  # the writers report a bad output folder, in their turn
+                return
+            early = EarlyQuality(placed, folder, jobs)
+
+    try:
+        # With fixes on, placeholders are checked on the space the fix loop leaves (`apply_fixes`).
+        space = analyse(manifest, jobs=jobs, progress=progress, converge=not fix, on_placed=start_early)
+        fixes = FixState()
+        layer_fixes: dict[str, FixState] = {}
+        if fix:
+            space, fixes = apply_fixes(space, jobs=jobs)
+            for layer in space.layer_spaces:  # a beta layer is a blend space: its own `fixes:` apply
+                if isinstance(layer, BetaSpace):
+                    layer.space, layer_fixes[layer.name] = apply_fixes(layer.space, jobs=jobs)
+        out_dir = output_dir(space, out)
+        formats = list(dict.fromkeys(space.manifest.model.output.formats))
+        document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes, jobs, early)
+    finally:
+        if early is not None:
+            early.stop()
     return BuildResult(space, document, out_dir, written, fixes, layer_fixes)
 
 
