@@ -28,11 +28,13 @@ from blendspace_pipeline.space.model import BlendSpace
 
 class EarlyQuality:
     """The maps of ``space`` (placed, its document to be written to ``out_dir``), computed in a
-    forked child with ``jobs`` - 1 foot-skate workers (this process keeps one core)."""
+    forked child with ``jobs`` foot-skate workers: the rules here take a fraction of the maps'
+    time (0.3 s against 1 s of CPU on 1,000 clips), and one worker left the maps on the critical
+    path (measured with benchmarks/bench_build.py)."""
 
     def __init__(self, space: BlendSpace, out_dir: Path, jobs: int) -> None:
         sync = space.manifest.model.blend.sync
-        task = functools.partial(_maps, space, out_dir, sync, max(1, jobs - 1))
+        task = functools.partial(_maps, space, out_dir, sync, jobs)
         self.children = Children([task], 1)
 
     def result(self, document: BlendSpaceDocument) -> BlendQualityDoc | None:
