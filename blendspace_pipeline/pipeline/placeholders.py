@@ -155,9 +155,9 @@ class _Trials:
 
         A new simulation takes along, up to ``jobs`` in all and no more than the budget left
         could use, the trials that follow it when it fails: the mark's next candidates, then the
-        next marks'. Most candidates fail (a 1,000-clip library's marks took 4 trials, the
-        sample project's 1 or 12: benchmarks/bench_placeholders.py), so that is the search's
-        likeliest path."""
+        next marks'. Most candidates fail (with no budget cap, the marks of a 1,000-clip
+        procedural library took 4 trials each, the sample project's 1 or all 12), so that is
+        the search's likeliest path."""
         without = self.marks[at][2]
         key = _trial_key(self.candidates(at)[tried], without)
         if key not in self.done:
