@@ -47,6 +47,10 @@ class EarlyQuality:
         digest, quality = found
         return quality if digest == quality_inputs(document) else None
 
+    def ready(self) -> bool:
+        """Whether the child is done (`result` would not wait)."""
+        return self.children.ready()
+
     def stop(self) -> None:
         """Kill the child if it still runs (the build failed or was interrupted)."""
         self.children.kill()

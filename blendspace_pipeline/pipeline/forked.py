@@ -116,6 +116,16 @@ class Children:
                     self.results[index] = value
         return self.errors
 
+    def ready(self) -> bool:
+        """Whether every task has finished (nothing left to start, and each running child has
+        closed its pipe or begun writing its result, which it does once its task returned)."""
+        if self.waiting:
+            return False
+        with selectors.DefaultSelector() as selector:
+            for read_end in self.running:
+                selector.register(read_end, selectors.EVENT_READ)
+            return len(selector.select(timeout=0)) == len(self.running) if self.running else True
+
     def kill(self) -> None:
         self.waiting.clear()
         for read_end, (_, pid, _) in self.running.items():

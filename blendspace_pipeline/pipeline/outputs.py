@@ -375,7 +375,8 @@ def _write_outputs(
             # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
             quality = None
             if maps is not None:
-                meanwhile()  # the outputs beside the maps, while the early child finishes them
+                if not maps.ready():
+                    meanwhile()  # the outputs beside the maps, while the early child finishes them
                 quality = maps.result(document)
             if quality is None:
                 quality = blend_quality(
@@ -387,7 +388,6 @@ def _write_outputs(
                     meanwhile=meanwhile,
                 )
             document.blend_quality = quality
-            meanwhile()  # when the map had no workers to wait for
             staged: list[Path] = []  # relative to staging (and to out_dir)
             for sub, state, folder in made:
                 in_space = {s.name for s in sub.samples}
@@ -409,6 +409,9 @@ def _write_outputs(
             # build; measured with benchmarks/bench_server.py).
             forked = sorted(late, key=_WRITER_ORDER.index)[: min(slots, len(late) - 1)] if parallel else []
             with Children([tasks[name] for name in forked], len(forked)) as rest:
+                # What waited for the map's workers and has not been written yet (the USD,
+                # when the maps were ready at once): here, beside the late children.
+                meanwhile()
                 for name in [name for name in late if name not in forked] if parallel else []:
                     try:
                         tasks[name]()
