@@ -16,12 +16,14 @@ folder, opened without following symlinks; when it cannot be written the one lin
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
 import traceback
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError, printable
@@ -133,7 +135,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         from blendspace_pipeline.memory import keep_freed_memory
 
         keep_freed_memory()
+        _exit_now(run_here(words))
     return run_here(words)
+
+
+def _exit_now(code: int) -> NoReturn:
+    """End the command's own process without the interpreter's teardown, which frees every
+    object one by one: 0.22-0.26 s after a 1,000-clip build had finished its work. The output is
+    flushed first; nothing here needs `atexit` (forked children and temporary folders are
+    cleaned up by the command itself, before it returns)."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe (`| head`), a closed stream
+            stream.flush()
+    os._exit(code)
 
 
 def run_here(words: list[str]) -> int:

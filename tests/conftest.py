@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+from typing import NoReturn
 
 import pytest
 
@@ -10,6 +12,21 @@ from blendspace_pipeline.motion.procedural import GaitSpec
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
+
+# `blendspace` ends its own process with os._exit (cli._exit_now). Called in the pytest process, it
+# would end the run at once, with exit status 0 and the remaining tests unrun: there it is an error.
+# Forked children (writers, workers, served commands) have other pids and exit as before.
+_TEST_PROCESS = os.getpid()
+_real_exit = os._exit
+
+
+def _guarded_exit(code: int) -> NoReturn:
+    if os.getpid() == _TEST_PROCESS:
+        raise RuntimeError(f"os._exit({code}) in the pytest process would end the test run silently")
+    _real_exit(code)
+
+
+os._exit = _guarded_exit
 
 
 def shared_data(*parts: str) -> Path:

@@ -82,7 +82,14 @@ def test_the_command_line_keeps_freed_memory_and_a_library_call_does_not(
     monkeypatch.setattr(memory, "keep_freed_memory", lambda: calls.append(1))
     monkeypatch.setenv("BLENDSPACE_NO_SERVER", "1")
     monkeypatch.setattr(sys, "argv", ["blendspace", "--version"])
-    assert cli.main() == 0
+
+    def ended(code: int) -> None:
+        raise SystemExit(code)  # the command's own process ends here, without teardown
+
+    monkeypatch.setattr(cli, "_exit_now", ended)
+    with pytest.raises(SystemExit) as exited:
+        cli.main()
+    assert exited.value.code == 0
     assert calls == [1]
     assert cli.main(["--version"]) == 0
     assert calls == [1]

@@ -1,0 +1,44 @@
+"""`blendspace` ends its process without the interpreter's teardown (`cli._exit_now`): what it
+printed still arrives whole, through a pipe or into a file, and its exit status is the command's."""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+from contextlib import redirect_stdout
+from pathlib import Path
+
+from blendspace_pipeline.cli import main
+
+
+def _command(*words: str, stdout: int | object = subprocess.PIPE) -> subprocess.CompletedProcess[bytes]:
+    env = {**os.environ, "BLENDSPACE_NO_SERVER": "1"}
+    return subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", *words],
+        stdout=stdout,
+        stderr=subprocess.PIPE,
+        env=env,
+        timeout=120,
+    )
+
+
+def test_everything_printed_arrives_through_a_pipe_and_into_a_file(tmp_path: Path) -> None:
+    here = io.StringIO()
+    with redirect_stdout(here):
+        assert main(["schema"]) == 0
+    assert len(here.getvalue()) > 10_000  # more than one pipe buffer's worth
+    piped = _command("schema")
+    assert piped.returncode == 0 and piped.stdout.decode() == here.getvalue()
+    with (tmp_path / "schema.json").open("wb") as stream:
+        assert _command("schema", stdout=stream).returncode == 0
+    assert (tmp_path / "schema.json").read_text(encoding="utf-8") == here.getvalue()
+
+
+def test_the_exit_status_is_the_command_s(tmp_path: Path) -> None:
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text("schema_version: 1\nclipz: []\n", encoding="utf-8")
+    done = _command("check", str(manifest))
+    assert done.returncode == 2
+    assert b"clipz" in done.stderr
