@@ -223,7 +223,9 @@ static PyObject *forward_kinematics(PyObject *self, PyObject *args) {
    in float32), and declines (False, the canvas untouched) whatever that code would read
    differently: wrong sizes, spans outside the canvas, an index outside its table. */
 
-#define MAX_PIXEL (INT64_C(1) << 40)
+/* Coordinates are declined beyond 2^26 pixels: a NaN cast to int64, or a line so long that drawing
+   it pixel by pixel would not end (numpy's arrays for it would not fit in memory either). */
+#define MAX_PIXEL (INT64_C(1) << 26)
 
 static int canvas_ok(const Py_buffer *canvas, Py_ssize_t height, Py_ssize_t width) {
     return EXACT_DOUBLES && height >= 0 && width >= 0 &&
@@ -247,7 +249,6 @@ static PyObject *draw_lines(PyObject *self, PyObject *args) {
         return NULL;
     Py_ssize_t lines = starts.len / (Py_ssize_t)(2 * sizeof(int64_t));
     int ok = canvas_ok(&canvas, height, width) && int64s_ok(&starts, 2 * lines) && int64s_ok(&ends, 2 * lines);
-    /* A coordinate beyond 2^40 pixels (a NaN cast to int64) would overflow or never end. */
     for (Py_ssize_t i = 0; ok && i < 2 * lines; i++) {
         int64_t p = ((const int64_t *)starts.buf)[i], q = ((const int64_t *)ends.buf)[i];
         if (p > MAX_PIXEL || p < -MAX_PIXEL || q > MAX_PIXEL || q < -MAX_PIXEL) ok = 0;
@@ -301,6 +302,10 @@ static PyObject *stamp_markers(PyObject *self, PyObject *args) {
     const int64_t *kind = (const int64_t *)kinds.buf, *template = (const int64_t *)template_buffer.buf;
     for (Py_ssize_t i = 0; ok && i < markers; i++)
         if (kind[i] < 0 || kind[i] >= templates) ok = 0;
+    for (Py_ssize_t i = 0; ok && i < 2 * markers; i++) {
+        int64_t c = ((const int64_t *)centres.buf)[i];
+        if (c > MAX_PIXEL || c < -MAX_PIXEL) ok = 0;
+    }
     for (Py_ssize_t i = 0; ok && i < templates * cells; i++)
         if (template[i] < -1 || template[i] >= colours) ok = 0;
     if (ok) {

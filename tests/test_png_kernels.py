@@ -168,6 +168,10 @@ def test_kernels_decline_what_numpy_would_read_otherwise() -> None:
     # Lines from a NaN cast to int64 (they would never end), odd sizes for the box filter.
     nan_end = np.array([[0, np.iinfo(np.int64).min]], dtype=np.int64)
     assert not kernels.draw_lines(canvas, HEIGHT, WIDTH, centre, nan_end, colour)
+    assert not kernels.draw_lines(
+        canvas, HEIGHT, WIDTH, centre, np.array([[0, 2**27]], dtype=np.int64), colour
+    )
+    assert not kernels.stamp_markers(canvas, HEIGHT, WIDTH, nan_end, one * 0, template * 0, 3, palette)
     assert not kernels.box_mean(canvas, HEIGHT, WIDTH, np.empty((HEIGHT // 4, WIDTH // 4, 3), np.float32), 4)
     assert not kernels.box_mean(canvas, HEIGHT, WIDTH, np.empty((12, 17, 3), np.float32), 7)
     assert np.array_equal(canvas, before)
