@@ -5,6 +5,7 @@ refused by digest and made again), a child that fails (made again here)."""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -87,3 +88,65 @@ def test_a_child_that_fails_leaves_the_maps_to_this_process(
     alone = _build(manifest, 1)
     assert _build(manifest, 2) == alone
     assert taken == [False]
+
+
+def test_while_the_maps_are_made_the_other_outputs_yield_and_the_report_is_drafted(
+    manifest: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The maps are the critical path: the outputs that do not show them fork at once at a
+    lower CPU priority, and this process draws the report's draft (everything but the blend
+    quality) while it waits. Every output is the one a single process writes."""
+    from test_incremental import _same_outputs
+
+    from blendspace_pipeline import report
+    from blendspace_pipeline.pipeline import outputs
+    from blendspace_pipeline.report import html
+
+    alone = manifest.parent / "out1"
+    _build(manifest, 1)
+    # The child is never done before the writers plan (as on a 1,000-clip build).
+    monkeypatch.setattr(early_quality.EarlyQuality, "ready", lambda self: False)
+    niceness = manifest.parent / "niceness.txt"
+    write_png = report.write_png
+
+    def recording_png(doc: BlendSpaceDocument, path: Path) -> None:
+        niceness.write_text(str(os.nice(0)))  # in the forked writer
+        write_png(doc, path)
+
+    monkeypatch.setattr(report, "write_png", recording_png)
+    drafted: list[bool] = []  # per draft: drawn before the blend quality was set
+    used = manifest.parent / "used.txt"  # the forked HTML writer's draft: the one drawn here
+    draft_report, render_html = html.draft_report, html.render_html
+
+    def drafting(doc: BlendSpaceDocument) -> html.ReportDraft:
+        drafted.append(doc.blend_quality is None)
+        return draft_report(doc)
+
+    def rendering(doc: BlendSpaceDocument, **kwargs: object) -> str:
+        draft = kwargs.get("draft")
+        used.write_text(str(isinstance(draft, html.ReportDraft) and draft.doc is doc))
+        return render_html(doc, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(html, "draft_report", drafting)
+    monkeypatch.setattr(html, "render_html", rendering)
+    _build(manifest, 2)
+    _same_outputs(alone, manifest.parent / "out2")
+    assert int(niceness.read_text()) == os.nice(0) + outputs.BEHIND_NICENESS
+    assert drafted == [True]  # drawn once, here, before the blend quality was set
+    assert used.read_text() == "True"
+
+
+def test_a_report_finished_from_its_draft_is_the_page_drawn_at_once(manifest: Path) -> None:
+    from blendspace_pipeline.report import html
+
+    built = BlendSpaceDocument.model_validate_json(_build(manifest, 1))
+    assert built.blend_quality is not None and built.blend_quality.foot_skate is not None
+    whole = html.render_html(built, stamp="then")
+    blind = built.model_copy(update={"blend_quality": None})
+    draft = html.draft_report(blind)  # what the build draws while the maps are made
+    blind.blend_quality = built.blend_quality  # ...and then sets
+    assert html.render_html(blind, stamp="then", draft=draft) == whole
+    # A draft of another document object is not trusted: the page is drawn afresh.
+    assert html.render_html(built, stamp="then", draft=draft) == whole
+    other = built.model_copy(update={"name": "other"})
+    assert html.render_html(other, stamp="then", draft=draft) == html.render_html(other, stamp="then")

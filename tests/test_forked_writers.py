@@ -132,7 +132,7 @@ def test_when_two_writers_fail_the_serial_order_decides_which_error_is_shown(
     manifest = _project(tmp_path / "p")
     from blendspace_pipeline import report
 
-    def html_fails(doc: object, path: Path, inputs: object = ()) -> None:
+    def html_fails(doc: object, path: Path, inputs: object = (), **_: object) -> None:
         raise OSError(errno.EACCES, os.strerror(errno.EACCES), "the-html")
 
     def png_fails(doc: object, path: Path) -> None:
@@ -309,9 +309,9 @@ def test_without_fork_jobs_2_writes_everything_here_in_order(
         order.append(("png", os.getpid()))
         real_png(doc, path)  # type: ignore[arg-type]
 
-    def html(doc: object, path: Path, inputs: object = ()) -> None:
+    def html(doc: object, path: Path, inputs: object = (), **options: object) -> None:
         order.append(("html", os.getpid()))
-        real_html(doc, path, inputs)  # type: ignore[arg-type]
+        real_html(doc, path, inputs, **options)  # type: ignore[arg-type]
 
     monkeypatch.setattr(report, "write_png", png)
     monkeypatch.setattr(report, "write_html_report", html)
@@ -323,3 +323,11 @@ def test_without_fork_jobs_2_writes_everything_here_in_order(
     monkeypatch.setattr(report, "write_html_report", real_html)
     assert _build(manifest, tmp_path / "serial", capsys, 1)[0] in (0, 1)
     assert _outputs(tmp_path / "no-fork") == _outputs(tmp_path / "serial")
+
+
+def test_children_started_nicer_run_at_that_lower_priority_and_this_process_does_not() -> None:
+    here = os.nice(0)
+    with forked.Children([lambda: os.nice(0), lambda: os.nice(0)], 2, nice=4) as children:
+        assert children.wait() == {}
+    assert children.results == {0: here + 4, 1: here + 4}
+    assert os.nice(0) == here

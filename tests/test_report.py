@@ -370,3 +370,15 @@ def test_the_report_time_is_reproducible(tmp_path: Path, monkeypatch: pytest.Mon
     assert build_stamp([old, new]) == "1970-01-01 00:00:00 UTC (SOURCE_DATE_EPOCH)"
     monkeypatch.delenv("SOURCE_DATE_EPOCH")
     assert build_stamp([]).endswith("UTC (build time)")
+
+
+def test_a_truncated_json_output_is_refused_and_a_whole_one_passes(tmp_path: Path) -> None:
+    from blendspace_pipeline.report.atomic import IncompleteOutput, verify_written
+
+    whole = tmp_path / "n.blendspace.json"
+    whole.write_text('{"samples": [1, 2], "name": "n"}\n')
+    verify_written(whole)
+    cut = tmp_path / "cut.blendspace.json"
+    cut.write_text('{"samples": [1, 2], "na')  # what a full disk leaves
+    with pytest.raises(IncompleteOutput, match="incomplete"):
+        verify_written(cut)

@@ -8,18 +8,30 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from blendspace_pipeline.space.document import BlendSpaceDocument
+
+if TYPE_CHECKING:
+    from blendspace_pipeline.report.html import ReportDraft
 
 __all__ = ["write_html_report", "write_png"]
 
 
-def write_html_report(doc: BlendSpaceDocument, path: Path, inputs: Sequence[Path] = ()) -> None:
+def write_html_report(
+    doc: BlendSpaceDocument,
+    path: Path,
+    inputs: Sequence[Path] = (),
+    *,
+    stamp: str | None = None,
+    draft: ReportDraft | None = None,
+) -> None:
     """Write the self-contained interactive report (inline CSS, JS and SVG) atomically; its
-    time is that of the newest of ``inputs`` (see `html.build_stamp`)."""
+    time is ``stamp``, else that of the newest of ``inputs`` (see `html.build_stamp`).
+    ``draft``: the part drawn before the blend quality was set (`html.draft_report`)."""
     from blendspace_pipeline.report.html import write_html_report as write
 
-    write(doc, path, inputs)
+    write(doc, path, inputs, stamp=stamp, draft=draft)
 
 
 def write_png(doc: BlendSpaceDocument, path: Path) -> None:
