@@ -5,7 +5,6 @@ refused by digest and made again), a child that fails (made again here)."""
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -90,30 +89,20 @@ def test_a_child_that_fails_leaves_the_maps_to_this_process(
     assert taken == [False]
 
 
-def test_while_the_maps_are_made_the_other_outputs_yield_and_the_report_is_drafted(
+def test_while_the_maps_are_made_the_report_is_drafted_and_the_outputs_are_the_same(
     manifest: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The maps are the critical path: the outputs that do not show them fork at once at a
-    lower CPU priority, and this process draws the report's draft (everything but the blend
-    quality) while it waits. Every output is the one a single process writes."""
+    """The maps are a cold build's longest task: once this process has written what it writes
+    beside them, it draws the report's draft (everything but the blend quality), and the HTML
+    written after the maps only adds them. Every output is the one a single process writes."""
     from test_incremental import _same_outputs
 
-    from blendspace_pipeline import report
-    from blendspace_pipeline.pipeline import outputs
     from blendspace_pipeline.report import html
 
     alone = manifest.parent / "out1"
     _build(manifest, 1)
     # The child is never done before the writers plan (as on a 1,000-clip build).
     monkeypatch.setattr(early_quality.EarlyQuality, "ready", lambda self: False)
-    niceness = manifest.parent / "niceness.txt"
-    write_png = report.write_png
-
-    def recording_png(doc: BlendSpaceDocument, path: Path) -> None:
-        niceness.write_text(str(os.nice(0)))  # in the forked writer
-        write_png(doc, path)
-
-    monkeypatch.setattr(report, "write_png", recording_png)
     drafted: list[bool] = []  # per draft: drawn before the blend quality was set
     used = manifest.parent / "used.txt"  # the forked HTML writer's draft: the one drawn here
     draft_report, render_html = html.draft_report, html.render_html
@@ -131,7 +120,6 @@ def test_while_the_maps_are_made_the_other_outputs_yield_and_the_report_is_draft
     monkeypatch.setattr(html, "render_html", rendering)
     _build(manifest, 2)
     _same_outputs(alone, manifest.parent / "out2")
-    assert int(niceness.read_text()) == os.nice(0) + outputs.BEHIND_NICENESS
     assert drafted == [True]  # drawn once, here, before the blend quality was set
     assert used.read_text() == "True"
 

@@ -323,11 +323,3 @@ def test_without_fork_jobs_2_writes_everything_here_in_order(
     monkeypatch.setattr(report, "write_html_report", real_html)
     assert _build(manifest, tmp_path / "serial", capsys, 1)[0] in (0, 1)
     assert _outputs(tmp_path / "no-fork") == _outputs(tmp_path / "serial")
-
-
-def test_children_started_nicer_run_at_that_lower_priority_and_this_process_does_not() -> None:
-    here = os.nice(0)
-    with forked.Children([lambda: os.nice(0), lambda: os.nice(0)], 2, nice=4) as children:
-        assert children.wait() == {}
-    assert children.results == {0: here + 4, 1: here + 4}
-    assert os.nice(0) == here

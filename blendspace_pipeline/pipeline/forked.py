@@ -71,11 +71,8 @@ class Children:
     start as running ones finish while `wait` waits). Leaving the ``with`` block kills and reaps
     any child still running (the caller failed or was interrupted: none writes on)."""
 
-    def __init__(
-        self, tasks: Sequence[Task], limit: int, start_order: Sequence[int] | None = None, nice: int = 0
-    ):
+    def __init__(self, tasks: Sequence[Task], limit: int, start_order: Sequence[int] | None = None):
         self.tasks = list(tasks)
-        self.nice = nice
         self.limit = max(1, limit)
         self.errors: dict[int, BaseException] = {}
         self.results: dict[int, Any] = {}  # what a task returned, when it is not None
@@ -91,7 +88,7 @@ class Children:
     def _fill(self) -> None:
         while self.waiting and len(self.running) < self.limit:
             index = self.waiting.pop(0)
-            read_end, pid = _start(self.tasks[index], self.nice)
+            read_end, pid = _start(self.tasks[index])
             self.running[read_end] = (index, pid, bytearray())
 
     def wait(self) -> dict[int, BaseException]:
@@ -147,7 +144,7 @@ class Children:
         self.kill()
 
 
-def _start(task: Task, nice: int = 0) -> tuple[int, int]:
+def _start(task: Task) -> tuple[int, int]:
     """Fork a child running ``task``; return the read end of its result pipe and its pid."""
     # Buffered text would otherwise be written twice: by the parent and by the child's copy.
     sys.stdout.flush()
@@ -163,9 +160,6 @@ def _start(task: Task, nice: int = 0) -> tuple[int, int]:
             gc.freeze()
             os.close(read_end)
             _die_with_parent(parent)
-            if nice:
-                with contextlib.suppress(OSError):
-                    os.nice(nice)
             payload = _result_of(task)
             view = memoryview(payload)
             while view:

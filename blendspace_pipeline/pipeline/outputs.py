@@ -381,16 +381,10 @@ def _write_outputs(
         # writes the rest of them while the map's workers play; after it, up to N - 1 of the rest
         # fork (the longest first) and this process writes what is left, in order.
         # A failure is raised as the serial order of `formats` would have raised it.
-        # When the maps are still being made by the early child (`early_quality`), they are the
-        # build's critical path: every output that does not show them forks now, at a lower CPU
-        # priority, to fill what the maps' processes leave of the cores (and the tail after
-        # them), and this process draws the report's draft meanwhile.
         parallel = jobs > 1 and can_fork()
         slots = jobs - 1 if parallel else 0
         blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)
-        behind = parallel and maps is not None and not maps.ready()
-        ahead = len(blind) if behind else slots
-        early, beside = (blind[:ahead], blind[ahead:]) if parallel else ([], [])
+        early, beside = (blind[:slots], blind[slots:]) if parallel else ([], [])
         blind_text = document.model_dump_json(indent=2) + "\n" if early or beside else None
         started = plan(early, blind_text) if blind_text is not None else []
         here = plan(beside, blind_text) if blind_text is not None else []
@@ -406,17 +400,17 @@ def _write_outputs(
                     errors[formats.index(name)] = error
                     waiting.clear()
 
-        with Children(
-            [tasks[name] for name in started], len(started), nice=BEHIND_NICENESS if behind else 0
-        ) as children:
+        with Children([tasks[name] for name in started], len(started)) as children:
             # The blend as the engine plays it (error map, drift, foot skate): needs the clips' poses.
             quality = None
             if maps is not None:
                 if not maps.ready():
                     meanwhile()  # the outputs beside the maps, while the early child finishes them
-                    if "html" in formats and not maps.ready():
-                        report.draw(document)
-                        report.stamp  # noqa: B018 - dated now, not after the maps
+                if "html" in formats and not maps.ready():
+                    # Still waiting (a cold build: the maps are its longest task): the report's
+                    # draft is drawn now, so the HTML written after the maps only adds them.
+                    report.draw(document)
+                    report.stamp  # noqa: B018 - dated now, not after the maps
                 quality = maps.result(document)
             if quality is None:
                 quality = blend_quality(
@@ -474,10 +468,6 @@ def _write_outputs(
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
-
-# How much lower the CPU priority of the outputs written beside the early maps is (`nice`): the
-# maps and the report then get the cores first, and these writers fill what is left.
-BEHIND_NICENESS = 10
 
 _QUALITY_FIELD = '\n  "blend_quality": null,\n'
 
