@@ -132,10 +132,15 @@ class _ReportParts:
         return build_stamp(input_files(self.space))
 
     def draw(self, document: BlendSpaceDocument) -> None:
-        """Draw everything of ``document``'s report but what its blend quality changes (set later)."""
+        """Draw everything of ``document``'s report but what its blend quality changes (set later).
+        A failure leaves no draft: the HTML writer then draws the page itself and fails in its
+        turn, so the error shown is the one the serial order of the outputs gives."""
         from blendspace_pipeline.report.html import draft_report
 
-        self.draft = draft_report(document)
+        try:
+            self.draft = draft_report(document)
+        except Exception:
+            self.draft = None
 
 
 def _writers(
