@@ -19,6 +19,10 @@
    draw_lines, stamp_markers, blend_spans, box_mean
        The PNG's rasteriser (report/png.py); see their comments below.
 
+   slerp(a, b, t, out, count)
+       Quaternion slerp (motion/quaternions.py), used where numpy's acos and sin are the C
+       library's (numpy's own SIMD versions may round differently on other CPUs).
+
    The build passes -ffp-contract=off (setup.py): a fused multiply-add would round once where
    numpy rounds twice. */
 
@@ -213,6 +217,57 @@ static PyObject *forward_kinematics(PyObject *self, PyObject *args) {
     PyBuffer_Release(&parents_buffer);
     PyBuffer_Release(&world_rot);
     PyBuffer_Release(&world_pos);
+    return PyBool_FromLong(ok);
+}
+
+/* slerp(a, b, t, out, count) -> bool
+   Spherical interpolation of ``count`` quaternion pairs (float64 (count, 4) buffers ``a``, ``b``,
+   ``out``; one float64 ``t`` per pair), as `quaternions.slerp` computes it: the dot product summed
+   left to right, ``b`` negated where it is negative (the shortest arc), the angle from acos of
+   the clipped |dot|, the weights sin((1 - t) theta) / sin(theta) and sin(t theta) / sin(theta)
+   (1 - t and t where sin(theta) < 1e-6), and the result divided by its length (by 1 where it is
+   0). acos and sin are the C library's: the caller uses this only where numpy's agree with them
+   (`quaternions._libm_agrees`). False (nothing computed) on wrong sizes. */
+static PyObject *slerp(PyObject *self, PyObject *args) {
+    Py_buffer a_buffer, b_buffer, t_buffer, out_buffer;
+    Py_ssize_t count;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "y*y*y*w*n", &a_buffer, &b_buffer, &t_buffer, &out_buffer, &count)) return NULL;
+    Py_ssize_t size = count * 4 * (Py_ssize_t)sizeof(double);
+    int ok = EXACT_DOUBLES && count >= 0 && a_buffer.len == size && b_buffer.len == size &&
+             out_buffer.len == size && t_buffer.len == count * (Py_ssize_t)sizeof(double) &&
+             PyBuffer_IsContiguous(&a_buffer, 'C') && PyBuffer_IsContiguous(&b_buffer, 'C') &&
+             PyBuffer_IsContiguous(&t_buffer, 'C') && PyBuffer_IsContiguous(&out_buffer, 'C');
+    if (ok) {
+        const double *a = (const double *)a_buffer.buf, *b = (const double *)b_buffer.buf;
+        const double *t = (const double *)t_buffer.buf;
+        double *out = (double *)out_buffer.buf;
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t i = 0; i < count; i++) {
+            const double *p = a + i * 4, *q = b + i * 4;
+            double dot = ((p[0] * q[0] + p[1] * q[1]) + p[2] * q[2]) + p[3] * q[3];
+            double sign = dot < 0.0 ? -1.0 : 1.0; /* -b is exact: only the sign bit changes */
+            dot = fabs(dot);
+            double clipped = dot > 1.0 ? 1.0 : (dot < -1.0 ? -1.0 : dot); /* NaN stays NaN, as np.clip */
+            double theta = acos(clipped);
+            double sin_theta = sin(theta);
+            int small = sin_theta < 1e-6;
+            double safe = small ? 1.0 : sin_theta;
+            double ti = t[i];
+            double wa = small ? 1.0 - ti : sin((1.0 - ti) * theta) / safe;
+            double wb = small ? ti : sin(ti * theta) / safe;
+            double r[4];
+            for (int k = 0; k < 4; k++) r[k] = wa * p[k] + wb * (sign * q[k]);
+            double norm = sqrt(((r[0] * r[0] + r[1] * r[1]) + r[2] * r[2]) + r[3] * r[3]);
+            double divisor = norm == 0.0 ? 1.0 : norm;
+            for (int k = 0; k < 4; k++) out[i * 4 + k] = r[k] / divisor;
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&a_buffer);
+    PyBuffer_Release(&b_buffer);
+    PyBuffer_Release(&t_buffer);
+    PyBuffer_Release(&out_buffer);
     return PyBool_FromLong(ok);
 }
 
@@ -467,6 +522,8 @@ static PyMethodDef methods[] = {
     {"box_mean", box_mean, METH_VARARGS,
      "box_mean(canvas, height, width, out, scale) -> bool: the mean of every scale x scale block."},
 
+    {"slerp", slerp, METH_VARARGS,
+     "slerp(a, b, t, out, count) -> bool: quaternions.slerp of count pairs, with the C library's acos and sin."},
     {"forward_kinematics", forward_kinematics, METH_VARARGS,
      "forward_kinematics(local_rot, local_pos, parents, world_rot, world_pos, frames) -> bool: world "
      "transforms of every joint, numpy's to the bit, or False to let numpy compute them."},

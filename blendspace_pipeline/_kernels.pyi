@@ -10,3 +10,6 @@ def forward_kinematics(
     frames: int,
     /,
 ) -> bool: ...
+def slerp(
+    a: ReadableBuffer, b: ReadableBuffer, t: ReadableBuffer, out: WriteableBuffer, count: int, /
+) -> bool: ...

@@ -176,3 +176,72 @@ def test_forward_kinematics_declines_what_it_cannot_compute() -> None:
     assert not kernels.forward_kinematics(rot, pos, np.array([-1, 0]), out_rot, out_pos, 2)
     assert not kernels.forward_kinematics(rot, pos[:2], np.array([-1, 0]), out_rot, out_pos, frames)
     assert not kernels.forward_kinematics(rot, pos, np.array([-1, -2]), out_rot, out_pos, frames)
+
+
+def _numpy_slerp(a: np.ndarray, b: np.ndarray, t: object, monkeypatch: pytest.MonkeyPatch) -> np.ndarray:
+    from blendspace_pipeline.motion import quaternions
+
+    with monkeypatch.context() as patched:
+        patched.setattr(native, "kernels", None)
+        return quaternions.slerp(a, b, t)  # type: ignore[arg-type]
+
+
+def _bits(values: np.ndarray) -> bytes:
+    return np.ascontiguousarray(values, dtype=np.float64).tobytes()
+
+
+@needs_kernels
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), frames=st.integers(1, 40), joints=st.integers(1, 6))
+def test_slerp_kernel_is_numpy_to_the_bit(seed: int, frames: int, joints: int) -> None:
+    """Every way the blend code calls slerp: per frame (a trailing 1), one weight, one t per
+    quaternion; unit and unnormalised quaternions, equal, opposite and zero ones."""
+    from blendspace_pipeline.motion import quaternions
+
+    if not quaternions._libm_agrees():
+        pytest.skip("numpy's acos/sin are not the C library's here: the kernel is not used")
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(frames, joints, 4))
+    a /= np.linalg.norm(a, axis=-1, keepdims=True)
+    b = rng.normal(size=(frames, joints, 4)) * rng.uniform(0.5, 2.0)
+    b[0] = a[0]  # the small-angle branch
+    if frames > 1:
+        b[1] = -a[1]  # the shortest arc flips the sign
+    if frames > 2:
+        a[2, 0] = b[2, 0] = 0.0  # a zero quaternion: no length to divide by
+    patch = pytest.MonkeyPatch()
+    try:
+        for t in (
+            rng.uniform(0, 1, frames)[:, None],
+            float(rng.uniform()),
+            rng.uniform(0, 1, (frames, joints)),
+        ):
+            fast = quaternions.slerp(a, b, t)
+            assert _bits(fast) == _bits(_numpy_slerp(a, b, t, patch))
+    finally:
+        patch.undo()
+
+
+@needs_kernels
+def test_slerp_stays_in_numpy_where_the_kernel_cannot_vouch(monkeypatch: pytest.MonkeyPatch) -> None:
+    from blendspace_pipeline.motion import quaternions
+
+    calls: list[int] = []
+    real = kernels.slerp  # type: ignore[union-attr]
+
+    def counting(*args: object) -> bool:
+        calls.append(1)
+        return real(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(native.kernels, "slerp", counting)
+    a = np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))
+    b = np.tile([0.0, 0.70710678, 0.0, 0.70710678], (3, 1))
+    quaternions.slerp(a, b, 0.5)
+    assert calls == [1]
+    quaternions.slerp(a[:1], b, 0.5)  # a and b broadcast against each other: numpy's
+    quaternions.slerp(a, b, np.linspace(0.1, 0.9, 12).reshape(3, 4))  # a t per component: numpy's
+    assert calls == [1]
+    monkeypatch.setattr(quaternions, "_libm_agrees", lambda: False)  # another numpy's acos/sin
+    expected = _numpy_slerp(a, b, 0.5, monkeypatch)
+    assert _bits(quaternions.slerp(a, b, 0.5)) == _bits(expected)
+    assert calls == [1]

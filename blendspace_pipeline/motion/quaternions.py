@@ -6,10 +6,14 @@ so readers convert once at the edge. All functions broadcast over leading axes.
 
 from __future__ import annotations
 
+import functools
+import math
 import warnings
 
 import numpy as np
 from numpy.typing import NDArray
+
+from blendspace_pipeline import native
 
 FloatArray = NDArray[np.float64]
 
@@ -136,6 +140,9 @@ def to_euler(q: FloatArray, order: str) -> FloatArray:
 def slerp(a: FloatArray, b: FloatArray, t: FloatArray | float) -> FloatArray:
     """Spherical interpolation from ``a`` to ``b`` (shortest arc), ``t`` broadcasting."""
     t_arr = np.asarray(t, dtype=np.float64)
+    fast = _slerp_kernel(a, b, t_arr)
+    if fast is not None:
+        return fast
     dot = np.sum(a * b, axis=-1, keepdims=True)
     b = np.where(dot < 0.0, -b, b)
     dot = np.abs(dot)
@@ -147,3 +154,51 @@ def slerp(a: FloatArray, b: FloatArray, t: FloatArray | float) -> FloatArray:
     wa = np.where(small, 1.0 - t_b, np.sin((1.0 - t_b) * theta) / safe)
     wb = np.where(small, t_b, np.sin(t_b * theta) / safe)
     return normalize(wa * a + wb * b)
+
+
+def _slerp_kernel(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray | None:
+    """`slerp` by the compiled kernel (the same operations one row at a time: 5-10x faster on a
+    played blend's poses), or None to compute it with numpy: no kernels, shapes that broadcast
+    otherwise than pairwise, or a numpy whose acos or sin round differently from the C
+    library's (`_libm_agrees`)."""
+    kernels = native.kernels
+    if kernels is None or np.shape(a) != np.shape(b) or np.ndim(a) < 1 or np.shape(a)[-1] != 4:
+        return None
+    lead = np.shape(a)[:-1]
+    # `slerp`'s broadcasting: t of the leading shape is one per quaternion; else it broadcasts
+    # against (..., 4) and must then be the same along the last axis (a trailing 1, or a scalar).
+    if t.ndim == len(lead) and t.ndim > 0:
+        per = t
+    elif t.ndim == 0 or t.shape[-1] == 1:
+        per = t if t.ndim == 0 else t[..., 0]
+    else:
+        return None
+    try:
+        per = np.broadcast_to(per, lead)
+    except ValueError:
+        return None
+    if not _libm_agrees():
+        return None
+    first = np.ascontiguousarray(a, dtype=np.float64)
+    second = np.ascontiguousarray(b, dtype=np.float64)
+    weights = np.ascontiguousarray(per, dtype=np.float64)
+    out: FloatArray = np.empty(first.shape, dtype=np.float64)
+    if not kernels.slerp(first, second, weights, out, first.size // 4):
+        return None
+    return out
+
+
+@functools.cache
+def _libm_agrees() -> bool:
+    """Whether numpy's float64 acos and sin give the C library's values (Python's `math` calls the
+    C library, as the kernel does) on a spread of arguments, the ones slerp passes included. On
+    x86-64 with AVX2 they do; a numpy that dispatches to its own SIMD versions (AVX-512) may
+    round some differently, and then slerp stays in numpy so its values never change."""
+    probe = np.concatenate(
+        [np.linspace(-1.0, 1.0, 2049), np.linspace(0.0, np.pi, 2049), np.geomspace(1e-12, 1.0, 512)]
+    )
+    acos = np.arccos(np.clip(probe, -1.0, 1.0))
+    sin = np.sin(probe)
+    return all(
+        float(x) == math.acos(min(1.0, max(-1.0, float(p)))) for p, x in zip(probe, acos, strict=True)
+    ) and all(float(y) == math.sin(float(p)) for p, y in zip(probe, sin, strict=True))
