@@ -72,6 +72,8 @@ def write_library(folder: Path, count: int, fmt: str, seconds: float, fps: float
 
             write_usd_clip(clip, path, meters_per_unit=1.0, up_axis="y")
         paths.append(path)
+    # Flushed now: the kernel's writeback of the new files must not run during the timed builds.
+    os.sync()
     return paths
 
 

@@ -43,6 +43,8 @@ def write_library(folder: Path, count: int, seconds: float, fps: float) -> int:
         path = shard / f"{spec.name}.bvh"
         write_bvh_clip(generate(spec), path)
         size += path.stat().st_size
+    # Flushed now: the kernel's writeback of the new files must not run during the timed builds.
+    os.sync()
     return size
 
 

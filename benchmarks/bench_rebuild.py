@@ -49,6 +49,8 @@ def write_library(folder: Path, count: int, seconds: float) -> list[Path]:
         path = folder / f"{spec.name}.bvh"
         write_bvh_clip(generate(spec), path)
         paths.append(path)
+    # Flushed now: the kernel's writeback of the new files must not run during the timed builds.
+    os.sync()
     return paths
 
 
