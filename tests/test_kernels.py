@@ -245,3 +245,13 @@ def test_slerp_stays_in_numpy_where_the_kernel_cannot_vouch(monkeypatch: pytest.
     expected = _numpy_slerp(a, b, 0.5, monkeypatch)
     assert _bits(quaternions.slerp(a, b, 0.5)) == _bits(expected)
     assert calls == [1]
+
+
+@needs_kernels
+def test_slerp_of_float32_quaternions_stays_in_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    from blendspace_pipeline.motion import quaternions
+
+    monkeypatch.setattr(native.kernels, "slerp", lambda *args: pytest.fail("float32 went to the kernel"))
+    a = np.tile(np.float32([0.0, 0.0, 0.0, 1.0]), (2, 1))
+    b = np.tile(np.float32([0.0, 0.6, 0.0, 0.8]), (2, 1))
+    assert quaternions.slerp(a, b, 0.5).shape == (2, 4)

@@ -162,9 +162,18 @@ def _slerp_kernel(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray | N
     otherwise than pairwise, or a numpy whose acos or sin round differently from the C
     library's (`_libm_agrees`)."""
     kernels = native.kernels
-    if kernels is None or np.shape(a) != np.shape(b) or np.ndim(a) < 1 or np.shape(a)[-1] != 4:
+    if (
+        kernels is None
+        or not isinstance(a, np.ndarray)
+        or not isinstance(b, np.ndarray)
+        or a.dtype != np.float64
+        or b.dtype != np.float64  # float32 would be computed in float32 by numpy
+        or a.shape != b.shape
+        or a.ndim < 1
+        or a.shape[-1] != 4
+    ):
         return None
-    lead = np.shape(a)[:-1]
+    lead = a.shape[:-1]
     # `slerp`'s broadcasting: t of the leading shape is one per quaternion; else it broadcasts
     # against (..., 4) and must then be the same along the last axis (a trailing 1, or a scalar).
     if t.ndim == len(lead) and t.ndim > 0:
@@ -179,8 +188,7 @@ def _slerp_kernel(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray | N
         return None
     if not _libm_agrees():
         return None
-    first = np.ascontiguousarray(a, dtype=np.float64)
-    second = np.ascontiguousarray(b, dtype=np.float64)
+    first, second = np.ascontiguousarray(a), np.ascontiguousarray(b)
     weights = np.ascontiguousarray(per, dtype=np.float64)
     out: FloatArray = np.empty(first.shape, dtype=np.float64)
     if not kernels.slerp(first, second, weights, out, first.size // 4):

@@ -100,7 +100,7 @@ def build_stamp(inputs: Sequence[Path] = ()) -> str:
     return f"{when:%Y-%m-%d %H:%M:%S} UTC ({what})"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # one draft per document object: identity, not content
 class ReportDraft:
     """Everything of ``doc``'s report that its blend quality does not change (all but the summary
     cards and the engine section), drawn once.
