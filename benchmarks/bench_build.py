@@ -16,7 +16,8 @@ and turn rates spread over the space), written once into a temporary folder. In 
   clips, no cache) in one process, then in two processes at once, each doing all of it. Two
   processes on two vCPUs do not run at twice the speed of one (shared caches and memory
   bandwidth, a host that lends the second vCPU late): on this project's 2-vCPU machines the
-  ceiling measured 1.75-1.95x, and a build's speed-up can only be read against it.
+  ceiling measured 1.46-2.36x within single runs, and a build's speed-up can only be read
+  against it.
 Each is printed in wall seconds and as a ratio to the baseline. Nothing here asserts a time; on
 a shared machine run it alone (the speed-up is meaningless when the other core is busy).
 """

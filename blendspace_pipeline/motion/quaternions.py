@@ -176,10 +176,10 @@ def _slerp_kernel(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray | N
     lead = a.shape[:-1]
     # `slerp`'s broadcasting: t of the leading shape is one per quaternion; else it broadcasts
     # against (..., 4) and must then be the same along the last axis (a trailing 1, or a scalar).
-    if t.ndim == len(lead) and t.ndim > 0:
+    if t.ndim in (0, len(lead)):
         per = t
-    elif t.ndim == 0 or t.shape[-1] == 1:
-        per = t if t.ndim == 0 else t[..., 0]
+    elif t.shape[-1] == 1:
+        per = t[..., 0]
     else:
         return None
     try:

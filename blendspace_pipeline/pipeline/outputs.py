@@ -132,11 +132,13 @@ class _ReportParts:
         return build_stamp(input_files(self.space))
 
     def draw(self, document: BlendSpaceDocument) -> None:
-        """Draw everything of ``document``'s report but what its blend quality changes (set later).
-        A failure leaves no draft: the HTML writer then draws the page itself and fails in its
-        turn, so the error shown is the one the serial order of the outputs gives."""
+        """Date the report and draw everything of ``document``'s report but what its blend
+        quality changes (set later). A failure leaves no draft: the HTML writer then draws the
+        page itself and fails in its turn, so the error shown is the one the serial order of the
+        outputs gives."""
         from blendspace_pipeline.report.html import draft_report
 
+        self.stamp  # noqa: B018 - the clock is read now, while the maps are still being made
         try:
             self.draft = draft_report(document)
         except Exception:
@@ -415,7 +417,6 @@ def _write_outputs(
                     # Still waiting (a cold build: the maps are its longest task): the report's
                     # draft is drawn now, so the HTML written after the maps only adds them.
                     report.draw(document)
-                    report.stamp  # noqa: B018 - dated now, not after the maps
                 quality = maps.result(document)
             if quality is None:
                 quality = blend_quality(
