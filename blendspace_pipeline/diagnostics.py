@@ -7,8 +7,8 @@ one, a position in the blend space; the CLI formats it and the JSON/report carry
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Literal
 
 Severity = Literal["error", "warning", "info"]
 SEVERITY_ORDER: dict[str, int] = {"error": 0, "warning": 1, "info": 2}
@@ -45,3 +45,22 @@ class Diagnostic:
 
     def sort_key(self) -> tuple[int, str, tuple[str, ...], str]:
         return (SEVERITY_ORDER[self.severity], self.rule, self.clips, self.message)
+
+    def evolve(self, **changes: Any) -> Diagnostic:
+        """`dataclasses.replace(self, **changes)`, faster for this class itself.
+
+        The copy skips `__init__` (1 us against 8: a 1,000-clip library has ~4,500 findings,
+        each anchored at a manifest line on every build). A subclass (a studio rule's own) may
+        define `__init__` or `__post_init__`, so it goes through `replace`."""
+        if type(self) is not Diagnostic:
+            return replace(self, **changes)
+        unknown = changes.keys() - _FIELDS
+        if unknown:
+            raise TypeError(f"Diagnostic has no field {sorted(unknown)[0]!r}")
+        copied = object.__new__(Diagnostic)
+        copied.__dict__.update(self.__dict__)
+        copied.__dict__.update(changes)
+        return copied
+
+
+_FIELDS = frozenset(f.name for f in fields(Diagnostic))

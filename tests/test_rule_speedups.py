@@ -52,3 +52,76 @@ def test_smallest_angles_never_drops_a_triangle_the_exact_angle_keeps() -> None:
     exact_min = np.array([min(angles(*map(tuple, c))) for c in corners.tolist()])
     finite = ~np.isnan(rough)
     assert np.max(np.abs(rough[finite] - exact_min[finite])) < ANGLE_MARGIN / 100
+
+
+# The engine's own hot paths on a 1,000-clip space (anchoring ~4,500 findings, checking them,
+# the placeholder search's nearness test) answer exactly as the code they replace.
+
+
+def test_evolve_is_dataclasses_replace() -> None:
+    import dataclasses
+
+    from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
+
+    mark = Placeholder((1.0, 2.0), "suggested", "too-close", "why", {"speed": 1.0})
+    found = Diagnostic("too-close", "BS004", "warning", "m", ("a", "b"), (1.0, 2.0), placeholders=(mark,))
+    for changes in ({"path": "m.yaml", "line": 3, "column": 5}, {"hint": "h"}, {"placeholders": ()}, {}):
+        evolved = found.evolve(**changes)
+        assert evolved == dataclasses.replace(found, **changes)
+        assert type(evolved) is Diagnostic and evolved is not found
+    assert found.path is None  # the original is untouched
+    with pytest.raises(TypeError, match="no field 'lines'"):
+        found.evolve(lines=3)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        found.evolve(line=3).line = 4  # type: ignore[misc]
+
+
+def test_evolve_of_a_subclass_runs_its_post_init() -> None:
+    import dataclasses
+
+    from blendspace_pipeline.diagnostics import Diagnostic
+
+    seen = []
+
+    @dataclasses.dataclass(frozen=True)
+    class StudioFinding(Diagnostic):
+        ticket: str = ""
+
+        def __post_init__(self) -> None:
+            seen.append(self.line)
+
+    finding = StudioFinding("studio-rule", "ST001", "info", "m", ticket="T-1")
+    evolved = finding.evolve(line=7)
+    assert type(evolved) is StudioFinding and evolved.ticket == "T-1" and evolved.line == 7
+    assert seen == [None, 7]
+
+
+def test_finite_number_answers_as_the_abc_check() -> None:
+    import numbers
+    from fractions import Fraction
+
+    from blendspace_pipeline.checks.rule_engine import _finite_number
+
+    values = [0.0, -1.5, math.nan, math.inf, -math.inf, 3, True, np.float64(2.0), np.float32(math.nan)]
+    values += [np.int64(4), Fraction(1, 3), "1.0", None, (1.0,), complex(1, 0)]
+    for value in values:
+        expected = isinstance(value, numbers.Real) and math.isfinite(value)
+        assert _finite_number(value) == expected, value
+
+
+@pytest.mark.parametrize("tau", [0.0, 1e-9, 0.5, 3.0, 12.5])
+def test_placeholder_nearness_answers_as_the_scan(tau: float) -> None:
+    from blendspace_pipeline.pipeline.placeholders import _near_samples
+
+    rng = np.random.default_rng(11)
+    grid = [(float(x), float(y)) for x in range(0, 101, 3) for y in range(0, 101, 4)]  # exact ties
+    staying = np.array(grid + rng.uniform(0, 100, (500, 2)).tolist(), dtype=np.float64)
+    points = [(float(x) + tau, float(y)) for x, y in grid[::7]]  # exactly tau from a sample
+    points += [(float(x), float(y)) for x, y in rng.uniform(-2, 102, (300, 2)).tolist()]
+    points += [(p[0] + math.nextafter(tau, 0.0) - tau, p[1]) for p in grid[::11]]
+    answers = _near_samples(points, staying, tau)
+    for point, near in zip(points, answers, strict=True):
+        scan = not all(math.hypot(point[0] - q[0], point[1] - q[1]) >= tau for q in staying.tolist())
+        assert near == scan, point
+    assert _near_samples([], staying, tau) == []
+    assert _near_samples(points[:3], staying[:0], tau) == [False] * 3

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.space.model import BlendSpace
 
@@ -21,6 +19,7 @@ _RULE_ANCHORS: dict[str, tuple[str | int, ...]] = {
 def anchor(space: BlendSpace, diagnostics: list[Diagnostic]) -> list[Diagnostic]:
     manifest = space.manifest
     by_name = {s.name: s.clip for s in space.samples}
+    where = str(manifest.path)
     anchored = []
     for diagnostic in diagnostics:
         clip = next((by_name[n] for n in diagnostic.clips if n in by_name), None)
@@ -28,5 +27,5 @@ def anchor(space: BlendSpace, diagnostics: list[Diagnostic]) -> list[Diagnostic]
             line, column = clip.line, clip.column
         else:
             line, column = manifest.locate(_RULE_ANCHORS.get(diagnostic.rule, ("clips",)))
-        anchored.append(replace(diagnostic, path=str(manifest.path), line=line, column=column))
+        anchored.append(diagnostic.evolve(path=where, line=line, column=column))
     return anchored

@@ -504,12 +504,18 @@ def finding_problem(item: object, rule: type[Rule], known_clips: set[str]) -> st
     if not all(isinstance(point, tuple) and len(point) == 2 for point in positions):
         return f"it reported a position that is not an (x, y) pair: {item.message!r:.80}"
     values += [value for point in positions if isinstance(point, tuple) for value in point]
-    if not all(isinstance(value, numbers.Real) and math.isfinite(value) for value in values):
+    if not all(_finite_number(value) for value in values):
         return f"it reported a position or feature that is not a finite number: {item.message!r:.80}"
     unknown = sorted(set(item.clips) - known_clips)
     if unknown:
         return f"it named clips that are not in the space: {', '.join(unknown[:5])}"
     return None
+
+
+def _finite_number(value: object) -> bool:
+    # A float first: the ABC check of `numbers.Real` is most of this test's time (a 1,000-clip
+    # space checks ~10,000 numbers per rule run).
+    return (type(value) is float or isinstance(value, numbers.Real)) and math.isfinite(value)
 
 
 def _rule_key(loaded: LoadedRules, name: str) -> str | None:

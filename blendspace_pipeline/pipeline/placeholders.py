@@ -24,6 +24,9 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import NDArray
+
 from blendspace_pipeline.checks.rule_engine import run_rules
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
 from blendspace_pipeline.manifest.models import ClipEntry
@@ -115,8 +118,8 @@ def converge_placeholders(space: BlendSpace, jobs: int = 1) -> None:
             extra = "its placeholder was not checked by simulation (budget spent), so none is suggested"
             note = f"{note}; {extra}" if note else extra
         if note:
-            diagnostic = replace(diagnostic, hint=f"{diagnostic.hint}; {note}" if diagnostic.hint else note)
-        changed.append(replace(diagnostic, placeholders=tuple(_unique(marks))))
+            diagnostic = diagnostic.evolve(hint=f"{diagnostic.hint}; {note}" if diagnostic.hint else note)
+        changed.append(diagnostic.evolve(placeholders=tuple(_unique(marks))))
     space.diagnostics = changed
     space.placeholders = _unique(p for d in changed for p in d.placeholders)
 
@@ -242,15 +245,44 @@ def _candidates(
             ring.append((origin[0] + radius * math.cos(angle), origin[1] + radius * math.sin(angle)))
     inside = [p for p in extra + ring if -1e-9 <= p[0] <= 100 + 1e-9 and -1e-9 <= p[1] <= 100 + 1e-9]
     inside.sort(key=lambda p: math.hypot(p[0] - origin[0], p[1] - origin[1]))
-    staying = [to_norm(s.position) for s in space.samples if s.name not in without]
-
-    def free(p: tuple[float, float]) -> bool:
-        # Compared where the clip would be placed: snapped to the grid like any sample.
-        snapped = to_norm((space.axes[0].snap(p[0]), space.axes[1].snap(p[1])))
-        return all(math.hypot(snapped[0] - q[0], snapped[1] - q[1]) >= tau for q in staying)
-
     points = [mark.position] + [to_axis(p) for p in inside]
-    return [p for p in points if free(p)]
+    # Compared where the clip would be placed: snapped to the grid like any sample.
+    snapped = [to_norm((space.axes[0].snap(p[0]), space.axes[1].snap(p[1]))) for p in points]
+    return [
+        p
+        for p, near in zip(points, _near_samples(snapped, _staying(space, without), tau), strict=True)
+        if not near
+    ]
+
+
+def _near_samples(points: list[tuple[float, float]], staying: NDArray[np.float64], tau: float) -> list[bool]:
+    """For each point, whether a staying sample is nearer than ``tau`` (normalised units).
+
+    The distances of every point to every sample are one array operation; only samples within
+    a margin of ``tau`` are measured again with `math.hypot`, the test's own distance (the
+    margin is far above the rounding of a squared distance, so no nearer sample is missed)."""
+    if not points or not len(staying):
+        return [False] * len(points)
+    at = np.array(points, dtype=np.float64)
+    offsets = staying[None, :, :] - at[:, None, :]
+    close = np.einsum("ijk,ijk->ij", offsets, offsets) < (tau * (1.0 + 1e-6)) ** 2
+    return [
+        not all(math.hypot(x - qx, y - qy) >= tau for qx, qy in staying[row].tolist())
+        for (x, y), row in zip(points, close, strict=True)
+    ]
+
+
+def _staying(space: BlendSpace, without: tuple[str, ...]) -> NDArray[np.float64]:
+    """Normalised positions (axis ranges to 0..100, as `_candidates`' ``to_norm`` computes them)
+    of the samples a trial keeps, as an (n, 2) array: the nearness test of every candidate is
+    one array operation instead of a loop over the library."""
+    ranges = space.axis_ranges()
+    kept = [s.position for s in space.samples if s.name not in without]
+    positions = np.array(kept, dtype=np.float64).reshape(len(kept), 2)
+    minimum = np.array([ranges[0].minimum, ranges[1].minimum], dtype=np.float64)
+    span = np.array([ranges[0].maximum - ranges[0].minimum, ranges[1].maximum - ranges[1].minimum])
+    normalised: NDArray[np.float64] = (positions - minimum) / span * 100.0
+    return normalised
 
 
 def _with_virtual(space: BlendSpace, point: tuple[float, float], without: tuple[str, ...] = ()) -> BlendSpace:
