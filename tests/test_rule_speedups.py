@@ -116,6 +116,8 @@ def test_placeholder_nearness_answers_as_the_scan(tau: float) -> None:
     rng = np.random.default_rng(11)
     grid = [(float(x), float(y)) for x in range(0, 101, 3) for y in range(0, 101, 4)]  # exact ties
     staying = np.array(grid + rng.uniform(0, 100, (500, 2)).tolist(), dtype=np.float64)
+    if tau == 3.0:  # a sample at a NaN position is never "far enough" for the scan either
+        staying = np.vstack([staying, [[math.nan, 50.0]]])
     points = [(float(x) + tau, float(y)) for x, y in grid[::7]]  # exactly tau from a sample
     points += [(float(x), float(y)) for x, y in rng.uniform(-2, 102, (300, 2)).tolist()]
     points += [(p[0] + math.nextafter(tau, 0.0) - tau, p[1]) for p in grid[::11]]

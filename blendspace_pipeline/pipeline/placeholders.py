@@ -265,7 +265,8 @@ def _near_samples(points: list[tuple[float, float]], staying: NDArray[np.float64
         return [False] * len(points)
     at = np.array(points, dtype=np.float64)
     offsets = staying[None, :, :] - at[:, None, :]
-    close = np.einsum("ijk,ijk->ij", offsets, offsets) < (tau * (1.0 + 1e-6)) ** 2
+    # Written as "not beyond" so that a NaN distance is measured too, as the scan would.
+    close = ~(np.einsum("ijk,ijk->ij", offsets, offsets) >= (tau * (1.0 + 1e-6)) ** 2)
     return [
         not all(math.hypot(x - qx, y - qy) >= tau for qx, qy in staying[row].tolist())
         for (x, y), row in zip(points, close, strict=True)
