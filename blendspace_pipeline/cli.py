@@ -132,9 +132,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if code is not None:
             return code
     if argv is None:  # a process of its own: measuring in it (--jobs 1) reuses its freed pages
-        from blendspace_pipeline.memory import keep_freed_memory
+        from blendspace_pipeline.memory import collect_less, keep_freed_memory
 
         keep_freed_memory()
+        collect_less()
         _exit_now(run_here(words))
     return run_here(words)
 

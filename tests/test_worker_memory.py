@@ -80,6 +80,7 @@ def test_the_command_line_keeps_freed_memory_and_a_library_call_does_not(
 
     calls: list[int] = []
     monkeypatch.setattr(memory, "keep_freed_memory", lambda: calls.append(1))
+    monkeypatch.setattr(memory, "collect_less", lambda: calls.append(2))
     monkeypatch.setenv("BLENDSPACE_NO_SERVER", "1")
     monkeypatch.setattr(sys, "argv", ["blendspace", "--version"])
 
@@ -90,7 +91,21 @@ def test_the_command_line_keeps_freed_memory_and_a_library_call_does_not(
     with pytest.raises(SystemExit) as exited:
         cli.main()
     assert exited.value.code == 0
-    assert calls == [1]
+    assert calls == [1, 2]
     assert cli.main(["--version"]) == 0
-    assert calls == [1]
+    assert calls == [1, 2]
     assert "blendspace" in capsys.readouterr().out
+
+
+def test_the_command_collects_young_objects_less_often() -> None:
+    """`collect_less`: the youngest generation every `YOUNG_THRESHOLD` allocations instead of
+    Python's 700, the older generations' ratios kept."""
+    import gc
+
+    before = gc.get_threshold()
+    try:
+        memory.collect_less()
+        assert gc.get_threshold() == (memory.YOUNG_THRESHOLD, before[1], before[2])
+        assert before[0] < memory.YOUNG_THRESHOLD
+    finally:
+        gc.set_threshold(*before)

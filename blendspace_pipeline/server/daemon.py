@@ -315,9 +315,10 @@ def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
     _missing, imported_env = preload()
     # Every forked command inherits the allocator settings of the measuring workers: a served
     # `--jobs 1` build measures clips without a page fault per fresh page either.
-    from blendspace_pipeline.memory import keep_freed_memory
+    from blendspace_pipeline.memory import collect_less, keep_freed_memory
 
     keep_freed_memory()
+    collect_less()
     # Forked commands share the server's memory copy-on-write; the collector walking every object
     # would copy all of it into each command (tens of ms here). Frozen objects are never walked.
     gc.collect()
