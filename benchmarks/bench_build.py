@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from installed import compile_package
 
 from blendspace_pipeline.cli import main as cli_main
 from blendspace_pipeline.manifest import load_manifest
@@ -129,6 +130,7 @@ def main() -> None:
     parser.add_argument("--format", choices=("bvh", "usda"), default="bvh")
     parser.add_argument("--rounds", type=int, default=5, help="cold builds of each --jobs (median)")
     args = parser.parse_args()
+    compile_package()  # bytecode, as an installed tool has it (see installed.py)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         start = time.perf_counter()

@@ -28,6 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from installed import compile_package
 
 from blendspace_pipeline.cli import main as cli_main
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
@@ -76,6 +77,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=7.0)
     parser.add_argument("--jobs", type=int, default=1)
     args = parser.parse_args()
+    compile_package()  # bytecode, as an installed tool has it (see installed.py)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         os.environ["BLENDSPACE_CACHE_DIR"] = str(root / "cache")

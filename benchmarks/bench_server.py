@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 from bench_rebuild import write_library
+from installed import compile_package
 
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.bvh import write_bvh_clip
@@ -50,6 +51,7 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--edits", type=int, default=3)
     args = parser.parse_args()
+    compile_package()  # bytecode, as an installed tool has it (see installed.py)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         paths = write_library(root / "clips", args.clips, args.seconds)
