@@ -11,8 +11,9 @@ process, as a pre-commit hook or an artist's save runs it (`build --no-fix`, `ch
   timed too), `--edits` times with a different clip each, median and best;
 - `check` after one clip edited (what a pre-commit hook runs), with and without the server;
 - nothing changed, with and without the server.
-Wall seconds and the ratio to the baseline (the issue's goal: one clip edited <= 1 s). Nothing is
-asserted; on a shared machine run it alone.
+Wall seconds and the ratio to the baseline (the issue's goal: one clip edited <= 1 s), and the
+host's speed before and after (CPU to read and measure one clip, `host_speed`): the edit's wall
+time follows it. Nothing is asserted; on a shared machine run it alone.
 """
 
 from __future__ import annotations
@@ -29,7 +30,10 @@ from pathlib import Path
 from bench_rebuild import write_library
 from installed import compile_package
 
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 
 
@@ -40,6 +44,19 @@ def _run(command: list[str], env: dict[str, str]) -> float:
     if done.returncode not in (0, 1):
         raise SystemExit(f"{' '.join(command)} exited {done.returncode}:\n{done.stderr[-2000:]}")
     return elapsed
+
+
+def host_speed(paths: list[Path], count: int = 50) -> float:
+    """CPU milliseconds to read and measure one library clip (``count`` of ``paths``, after a
+    warm-up): the host's speed in the same job. On the 2-vCPU machines of the issue notes it
+    moved between 6 and 10 ms per 7 s take within an hour, and the edited build's wall time with it."""
+    settings = RigSettings()
+    measure(read_clips(paths[0])[0], settings)
+    chosen = paths[1 : count + 1]
+    start = time.process_time()
+    for path in chosen:
+        measure(read_clips(path)[0], settings)
+    return 1000.0 * (time.process_time() - start) / max(len(chosen), 1)
 
 
 def main() -> None:
@@ -76,6 +93,7 @@ def main() -> None:
             path = paths[(index * 97 + len(paths) // 2) % len(paths)]
             write_bvh_clip(generate(GaitSpec(path.stem, speed=speed, duration=args.seconds, fps=120.0)), path)
 
+        speed_before = host_speed(paths)
         rows: list[tuple[str, float]] = []
         rows.append(("build, cold, no server (not a ratio's base)", _run(build, local)))
         edit(0, 2.2)
@@ -103,8 +121,12 @@ def main() -> None:
             rows.append(("nothing changed, server", _run(build, env)))
         finally:
             subprocess.run([*blendspace, "server", "stop"], capture_output=True, env=env, check=False)
+        speed_after = host_speed(paths)
         print(
             f"{args.clips} clips of {args.seconds:g} s, build --no-fix --jobs {args.jobs}, each a new process"
+        )
+        print(
+            f"host speed (read + measure one clip, CPU): {speed_before:.2f} ms before, {speed_after:.2f} ms after"
         )
         print(f"{'':<48} {'wall':>8}  {'ratio':>7}")
         for label, wall in rows:
