@@ -481,7 +481,9 @@ static PyObject *blend_spans(PyObject *self, PyObject *args) {
 /* box_mean(canvas, height, width, out, scale) -> bool
    The mean of every scale x scale block of the canvas into ``out`` ((height / scale,
    width / scale, 3) float32): 0 + the block's first pixel, plus the others in row-major order,
-   divided by scale * scale, in float32, as `_pixels` sums the strided views. */
+   divided by scale * scale, in float32, as `_pixels` sums the strided views. ``out`` may be the
+   start of ``canvas`` itself: in this loop order every block is read before a write reaches it
+   (the write of block (y, x) lands below its own first input, and no pointer is `restrict`). */
 static PyObject *box_mean(PyObject *self, PyObject *args) {
     Py_buffer canvas, out;
     Py_ssize_t height, width, scale;
