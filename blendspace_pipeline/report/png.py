@@ -52,7 +52,7 @@ def write_png(doc: BlendSpaceDocument, path: Path) -> None:
     # 8 bits per channel rounded half to even, as OIIO converts a float image when it writes one
     # (the same bytes; tested), without a float image buffer in between.
     # In place: the canvas is the only large array a PNG takes (each fresh page faults, and in a
-    # forked writer on a VM a fresh huge page cost 0.3-4 ms), not four more of the image's size.
+    # forked writer on a VM a fresh huge page cost 0.3-7 ms), not four more of the image's size.
     mean = _pixels(doc)
     mean *= np.float32(255.0)
     np.rint(mean, out=mean)
