@@ -19,6 +19,7 @@ time follows it. Nothing is asserted; on a shared machine run it alone.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import subprocess
@@ -48,15 +49,19 @@ def _run(command: list[str], env: dict[str, str]) -> float:
 
 def host_speed(paths: list[Path], count: int = 50) -> float:
     """CPU milliseconds to read and measure one library clip (``count`` of ``paths``, after a
-    warm-up): the host's speed in the same job. On the 2-vCPU machines of the issue notes it
-    moved between 6 and 10 ms per 7 s take within an hour, and the edited build's wall time with it."""
+    warm-up; NaN with fewer than two): the host's speed in the same job, to read beside the
+    edits' wall times. On the 2-vCPU machines of the issue notes it moved between 6 and 12 ms per
+    7 s take within an hour. CPU time leaves out what the hypervisor takes (steal time), so it
+    shows a slower host, not a busier one."""
+    chosen = paths[1 : count + 1]
+    if not chosen:
+        return math.nan
     settings = RigSettings()
     measure(read_clips(paths[0])[0], settings)
-    chosen = paths[1 : count + 1]
     start = time.process_time()
     for path in chosen:
         measure(read_clips(path)[0], settings)
-    return 1000.0 * (time.process_time() - start) / max(len(chosen), 1)
+    return 1000.0 * (time.process_time() - start) / len(chosen)
 
 
 def main() -> None:

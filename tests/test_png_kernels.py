@@ -120,12 +120,22 @@ def test_the_level_table_ends_where_float32_reaches_one() -> None:
 def test_the_box_filter_is_numpys(monkeypatch: pytest.MonkeyPatch) -> None:
     canvas = np.random.default_rng(9).uniform(0.0, 1.0, size=(2 * HEIGHT, 2 * WIDTH, 3)).astype(np.float32)
     _same(*_both_ways(monkeypatch, lambda: png._box_mean(canvas.copy())))
-    # The kernel writes over the canvas's first quarter: the same values as into a new array.
+    # The kernel writes over the canvas's first quarter: the same values as into a new array,
+    # and no new image-sized array.
     inside = canvas.copy()
     into = np.empty((HEIGHT, WIDTH, 3), np.float32)
     assert kernels.box_mean(canvas, 2 * HEIGHT, 2 * WIDTH, into, 2)
-    _same(png._box_mean(inside), into)
-    assert np.shares_memory(png._box_mean(inside), inside)  # no new image-sized array
+    mean = png._box_mean(inside)
+    _same(mean, into)
+    assert np.shares_memory(mean, inside)
+    # A canvas it may not write (read-only, or not contiguous) is filtered into a new array.
+    frozen = canvas.copy()
+    frozen.flags.writeable = False
+    _same(png._box_mean(frozen), into)
+    assert not np.shares_memory(png._box_mean(frozen), frozen)
+    strided = np.asfortranarray(canvas)
+    _same(png._box_mean(strided), into)
+    assert strided.tobytes(order="A") == np.asfortranarray(canvas).tobytes(order="A")
 
 
 def _crowded_document() -> BlendSpaceDocument:

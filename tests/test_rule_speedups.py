@@ -109,7 +109,7 @@ def test_finite_number_answers_as_the_abc_check() -> None:
         assert _finite_number(value) == expected, value
 
 
-@pytest.mark.parametrize("tau", [0.0, 1e-9, 0.5, 3.0, 12.5])
+@pytest.mark.parametrize("tau", [0.0, 1e-200, 1e-160, 1e-100, 1e-9, 0.5, 3.0, 12.5, 1e100, 1e160])
 def test_placeholder_nearness_answers_as_the_scan(tau: float) -> None:
     from blendspace_pipeline.pipeline.placeholders import _near_samples
 
@@ -120,7 +120,10 @@ def test_placeholder_nearness_answers_as_the_scan(tau: float) -> None:
         staying = np.vstack([staying, [[math.nan, 50.0]]])
     points = [(float(x) + tau, float(y)) for x, y in grid[::7]]  # exactly tau from a sample
     points += [(float(x), float(y)) for x, y in rng.uniform(-2, 102, (300, 2)).tolist()]
-    points += [(p[0] + math.nextafter(tau, 0.0) - tau, p[1]) for p in grid[::11]]
+    points += [(p[0] + math.nextafter(tau, 0.0), p[1]) for p in grid[::11]]  # one ulp inside
+    points += [(p[0] + tau * (1.0 - 1e-9), p[1]) for p in grid[::13]]
+    points += [(p[0] + tau * 0.6, p[1] + tau * 0.8) for p in grid[::17]]  # exactly tau on a diagonal
+    points += [(p[0], p[1]) for p in grid[::19]]  # on a sample
     answers = _near_samples(points, staying, tau)
     for point, near in zip(points, answers, strict=True):
         scan = not all(math.hypot(point[0] - q[0], point[1] - q[1]) >= tau for q in staying.tolist())

@@ -109,3 +109,34 @@ def test_the_command_collects_young_objects_less_often() -> None:
         assert before[0] < memory.YOUNG_THRESHOLD
     finally:
         gc.set_threshold(*before)
+
+
+def test_the_build_server_sets_both_for_the_commands_it_forks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`serve` tunes the allocator and the collector before it listens: every forked command
+    inherits both."""
+    import gc
+
+    from blendspace_pipeline.server import daemon
+
+    calls: list[str] = []
+    monkeypatch.setattr(memory, "keep_freed_memory", lambda: calls.append("allocator"))
+    monkeypatch.setattr(memory, "collect_less", lambda: calls.append("collector"))
+    monkeypatch.setattr(daemon, "preload", lambda: ([], {}))
+
+    class Refused(Exception):
+        pass
+
+    class NoSocket:
+        def __init__(self, *_args: object) -> None:
+            calls.append("listen")
+
+        def bind(self) -> None:
+            raise Refused
+
+    monkeypatch.setattr(daemon, "Server", NoSocket)
+    try:
+        with pytest.raises(Refused):
+            daemon.serve(1.0)
+    finally:
+        gc.unfreeze()  # serve froze this test process's objects before it would listen
+    assert calls == ["allocator", "collector", "listen"]

@@ -255,14 +255,23 @@ def _candidates(
     ]
 
 
+# The thresholds whose squares stay far inside float64's normal range (see `_near_samples`).
+_PREFILTERED = (1e-100, 1e100)
+
+
 def _near_samples(points: list[tuple[float, float]], staying: NDArray[np.float64], tau: float) -> list[bool]:
     """For each point, whether a staying sample is nearer than ``tau`` (normalised units).
 
     The distances of every point to every sample are one array operation; only samples within
-    a margin of ``tau`` are measured again with `math.hypot`, the test's own distance (the
-    margin is far above the rounding of a squared distance, so no nearer sample is missed)."""
+    a margin of ``tau`` are measured again with `math.hypot`, the test's own distance. For a
+    ``tau`` in `_PREFILTERED` the squares near ``tau**2`` are normal floats, whose rounding the
+    margin covers many times, so no nearer sample is missed; any other ``tau`` (a threshold of
+    1e-200 squares to 0) is scanned as before, sample by sample."""
     if not points or not len(staying):
         return [False] * len(points)
+    if not _PREFILTERED[0] <= tau <= _PREFILTERED[1]:
+        everyone = staying.tolist()
+        return [not all(math.hypot(x - qx, y - qy) >= tau for qx, qy in everyone) for x, y in points]
     at = np.array(points, dtype=np.float64)
     offsets = staying[None, :, :] - at[:, None, :]
     # Written as "not beyond" so that a NaN distance is measured too, as the scan would.
