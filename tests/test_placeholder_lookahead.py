@@ -7,12 +7,10 @@ from __future__ import annotations
 import copy
 import math
 import os
-from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
 
-from blendspace_pipeline.diagnostics import Diagnostic, Placeholder
 from blendspace_pipeline.pipeline import forked, placeholders
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.space.model import BlendSpace
@@ -116,66 +114,46 @@ def test_results_come_back_in_order_and_the_first_failure_in_order_is_raised() -
         forked.results_of([fails("here"), fails("child")], 2)
 
 
-def _old_candidates(
-    space: BlendSpace, diagnostic: Diagnostic, mark: Placeholder, without: tuple[str, ...]
-) -> list[tuple[float, float]]:
-    """`placeholders._candidates` as it was before its nearness test was vectorised (a
-    Python scan of every staying sample per candidate): the reference the new code must equal."""
+def _scan_staying(space: BlendSpace, without: tuple[str, ...]) -> list[tuple[float, float]]:
+    """The staying samples as the search listed them before `_staying`: one Python tuple each."""
     ranges = space.axis_ranges()
     spans = (ranges[0].maximum - ranges[0].minimum, ranges[1].maximum - ranges[1].minimum)
-
-    def to_norm(p: Sequence[float]) -> tuple[float, float]:
-        return (
-            (p[0] - ranges[0].minimum) / spans[0] * 100.0,
-            (p[1] - ranges[1].minimum) / spans[1] * 100.0,
+    return [
+        (
+            (s.position[0] - ranges[0].minimum) / spans[0] * 100.0,
+            (s.position[1] - ranges[1].minimum) / spans[1] * 100.0,
         )
+        for s in space.samples
+        if s.name not in without
+    ]
 
-    def to_axis(n: Sequence[float]) -> tuple[float, float]:
-        return (n[0] / 100.0 * spans[0] + ranges[0].minimum, n[1] / 100.0 * spans[1] + ranges[1].minimum)
 
-    origin = to_norm(mark.position)
-    extra: list[tuple[float, float]] = []
-    by_name = {s.name: s for s in space.samples}
-    corners = [to_norm(by_name[n].position) for n in diagnostic.clips if n in by_name]
-    if diagnostic.rule == "acute-triangle" and len(corners) == 3:
-        extra.append((sum(c[0] for c in corners) / 3, sum(c[1] for c in corners) / 3))
-        for i in range(3):
-            a, b = corners[i], corners[(i + 1) % 3]
-            extra.append(((a[0] + b[0]) / 2, (a[1] + b[1]) / 2))
-    tau = space.manifest.model.thresholds.too_close
-    ring = []
-    for radius in (tau / 2, tau, 2 * tau):
-        for step in range(8):
-            angle = step * math.pi / 4
-            ring.append((origin[0] + radius * math.cos(angle), origin[1] + radius * math.sin(angle)))
-    inside = [p for p in extra + ring if -1e-9 <= p[0] <= 100 + 1e-9 and -1e-9 <= p[1] <= 100 + 1e-9]
-    inside.sort(key=lambda p: math.hypot(p[0] - origin[0], p[1] - origin[1]))
-    staying = [to_norm(s.position) for s in space.samples if s.name not in without]
-
-    def free(p: tuple[float, float]) -> bool:
-        # Compared where the clip would be placed: snapped to the grid like any sample.
-        snapped = to_norm((space.axes[0].snap(p[0]), space.axes[1].snap(p[1])))
-        return all(math.hypot(snapped[0] - q[0], snapped[1] - q[1]) >= tau for q in staying)
-
-    points = [mark.position] + [to_axis(p) for p in inside]
-    return [p for p in points if free(p)]
+def _scan_near(
+    points: list[tuple[float, float]], staying: list[tuple[float, float]], tau: float
+) -> list[bool]:
+    """The nearness test as the search made it before `_near_samples`: every staying sample."""
+    return [not all(math.hypot(x - q[0], y - q[1]) >= tau for q in staying) for x, y in points]
 
 
 @pytest.mark.parametrize("too_close", [None, 4.0, 12.0])
-def test_candidates_keep_the_positions_the_scan_kept(analysed: BlendSpace, too_close: float | None) -> None:
-    """The vectorised nearness test (`_near_samples`) keeps exactly the candidates a scan of every
-    staying sample kept, for every suggested mark of the sample project, with and without the
-    members a too-close marker takes out."""
+def test_candidates_keep_the_positions_the_scan_kept(
+    analysed: BlendSpace, too_close: float | None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The vectorised nearness test (`_staying`, `_near_samples`) keeps exactly the candidates the
+    scan of every staying sample kept, for every suggested mark of the sample project, with and
+    without the members a too-close marker takes out."""
     space = copy.deepcopy(analysed)
     if too_close is not None:
         space.manifest.model.thresholds.too_close = too_close
-    compared = 0
-    for diagnostic in space.diagnostics:
-        for mark in diagnostic.placeholders:
-            if mark.priority != "suggested":
-                continue
-            for without in {(), tuple(diagnostic.clips)}:
-                new = placeholders._candidates(space, diagnostic, mark, without)
-                assert new == _old_candidates(space, diagnostic, mark, without)
-                compared += 1
-    assert compared >= 4
+    marks = [
+        (diagnostic, mark, without)
+        for diagnostic in space.diagnostics
+        for mark in diagnostic.placeholders
+        if mark.priority == "suggested"
+        for without in {(), tuple(diagnostic.clips)}
+    ]
+    assert len(marks) >= 4
+    new = [placeholders._candidates(space, *mark) for mark in marks]
+    monkeypatch.setattr(placeholders, "_staying", _scan_staying)
+    monkeypatch.setattr(placeholders, "_near_samples", _scan_near)
+    assert new == [placeholders._candidates(space, *mark) for mark in marks]
