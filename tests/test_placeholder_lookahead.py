@@ -154,6 +154,11 @@ def test_candidates_keep_the_positions_the_scan_kept(
     ]
     assert len(marks) >= 4
     new = [placeholders._candidates(space, *mark) for mark in marks]
+    # The search's own lists (the staying samples made once per `without`) are the same.
+    trials = placeholders._Trials(space, 1)
+    for index, (diagnostic, mark, without) in enumerate(trials.marks):
+        direct = placeholders._candidates(space, diagnostic, mark, without)
+        assert trials.candidates(index) == direct[: placeholders.MAX_TRIES]
     monkeypatch.setattr(placeholders, "_staying", _scan_staying)
     monkeypatch.setattr(placeholders, "_near_samples", _scan_near)
     assert new == [placeholders._candidates(space, *mark) for mark in marks]
