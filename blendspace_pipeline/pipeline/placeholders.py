@@ -310,15 +310,11 @@ def _near_samples(points: list[tuple[float, float]], staying: NDArray[np.float64
 
 
 def _staying(space: BlendSpace, without: tuple[str, ...]) -> NDArray[np.float64]:
-    """Normalised positions (axis ranges to 0..100, as `_candidates`' ``to_norm`` computes them)
-    of the samples a trial keeps, as an (n, 2) array: the nearness test of every candidate is
-    one array operation instead of a loop over the library."""
-    ranges = space.axis_ranges()
-    kept = [s.position for s in space.samples if s.name not in without]
-    positions = np.array(kept, dtype=np.float64).reshape(len(kept), 2)
-    minimum = np.array([ranges[0].minimum, ranges[1].minimum], dtype=np.float64)
-    span = np.array([ranges[0].maximum - ranges[0].minimum, ranges[1].maximum - ranges[1].minimum])
-    normalised: NDArray[np.float64] = (positions - minimum) / span * 100.0
+    """Normalised positions (`BlendSpace.normalised_positions`, the same arithmetic as
+    `_candidates`' ``to_norm``) of the samples a trial keeps, as an (n, 2) array: the nearness
+    test of every candidate is one array operation instead of a loop over the library."""
+    kept = np.array([s.name not in without for s in space.samples], dtype=bool)
+    normalised: NDArray[np.float64] = space.normalised_positions()[kept]
     return normalised
 
 
