@@ -145,11 +145,9 @@ class _ReportParts:
             self.draft = None
 
 
-def _writers(
-    space: BlendSpace, report: _ReportParts | None = None
-) -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None]]]:
-    """format -> (file suffix, writer). Heavy writers import only when used."""
-    parts = report if report is not None else _ReportParts(space)
+def _writers(report: _ReportParts) -> dict[str, tuple[str, Callable[[BlendSpaceDocument, Path], None]]]:
+    """format -> (file suffix, writer); the HTML is dated and drafted by ``report``. Heavy
+    writers import only when used."""
 
     def usd(doc: BlendSpaceDocument, path: Path) -> None:
         from blendspace_pipeline.writers.usd_blendspace import write_usd_blendspace
@@ -159,7 +157,7 @@ def _writers(
     def html(doc: BlendSpaceDocument, path: Path) -> None:
         from blendspace_pipeline.report import write_html_report
 
-        write_html_report(doc, path, stamp=parts.stamp, draft=parts.draft)
+        write_html_report(doc, path, stamp=report.stamp, draft=report.draft)
 
     def png(doc: BlendSpaceDocument, path: Path) -> None:
         from blendspace_pipeline.report import write_png
@@ -355,7 +353,7 @@ def _write_outputs(
         # Each document output is written only when what it is made of changed (`_output_inputs`);
         # otherwise the previous generation's file, checked to be the one written, is linked in.
         report = _ReportParts(space)
-        writers = _writers(space, report)
+        writers = _writers(report)
         home = out_dir / GENERATIONS / safe_file_stem(space.name)
         previous = _read_record(home)
         inputs_of: dict[str, str] = {}
