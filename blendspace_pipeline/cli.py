@@ -15,18 +15,22 @@ folder, opened without following symlinks; when it cannot be written the one lin
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import importlib
+import functools
 import os
 import sys
-import traceback
-from collections.abc import Sequence
-from pathlib import Path
-from typing import NoReturn
 
 from blendspace_pipeline import __version__
-from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError, printable
+
+TYPE_CHECKING = False  # the name mypy reads as true; `typing` costs a served command 4 ms
+if TYPE_CHECKING:
+    import argparse
+    from collections.abc import Sequence
+    from pathlib import Path
+    from typing import NoReturn
+
+# What a command handed to the build server imports is only `server.client` (json, socket): the
+# modules a local run needs (argparse, the error types, traceback; ~20 ms of a served command's
+# client) are imported in `run_here` and the functions below it.
 
 COMMANDS = ("build", "check", "rules", "schema", "eval", "export", "index", "suggest", "server")
 # Each command module's HELP, repeated here so the top-level help needs no import
@@ -47,16 +51,26 @@ COMMAND_HELP: dict[str, str] = {
 SERVED = frozenset(COMMANDS) - {"index", "server"}
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse exits 2 on usage errors already; we only make the message follow our format."""
+@functools.cache
+def _parser_class() -> type[argparse.ArgumentParser]:
+    import argparse
 
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.print_usage(sys.stderr)
-        sys.stderr.write(f"blendspace: error: {message}\n")
-        raise SystemExit(EXIT_INPUT)
+    from blendspace_pipeline.errors import EXIT_INPUT
+
+    class _Parser(argparse.ArgumentParser):
+        """argparse exits 2 on usage errors already; we only make the message follow our format."""
+
+        def error(self, message: str) -> NoReturn:
+            self.print_usage(sys.stderr)
+            sys.stderr.write(f"blendspace: error: {message}\n")
+            raise SystemExit(EXIT_INPUT)
+
+    return _Parser
 
 
 def _command_module(name: str) -> object | None:
+    import importlib
+
     try:
         return importlib.import_module(f"blendspace_pipeline.commands.{name}")
     except ModuleNotFoundError as error:
@@ -68,9 +82,10 @@ def _command_module(name: str) -> object | None:
 def build_parser(only: str | None = None, *, lazy: bool = False) -> argparse.ArgumentParser:
     """The full parser; with ``lazy``, only the command ``only`` is imported and given its arguments
     (the others are listed with their help line, which is all `--help` shows)."""
-    parser = _Parser(prog="blendspace", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser_class = _parser_class()
+    parser = parser_class(prog="blendspace", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--version", action="version", version=f"blendspace-pipeline {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=parser_class)
     for name in COMMANDS:
         if lazy and name != only:
             help_line = COMMAND_HELP.get(name)
@@ -93,12 +108,16 @@ def _chosen_command(argv: Sequence[str]) -> str | None:
 
 
 def crash_log_path() -> Path:
+    from pathlib import Path
+
     base = os.environ.get("XDG_CACHE_HOME") or os.environ.get("LOCALAPPDATA") or str(Path.home() / ".cache")
     return Path(base) / "blendspace-pipeline" / "crash.log"
 
 
 def _log_internal_error() -> tuple[Path | None, str]:
     """Write the traceback to the private crash log; (path, "") or (None, why it was not written)."""
+    import traceback
+
     log = crash_log_path()
     try:
         log.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
@@ -117,6 +136,8 @@ def _log_internal_error() -> tuple[Path | None, str]:
 
 
 def _one_line(error: BaseException) -> str:
+    from blendspace_pipeline.errors import printable
+
     text = str(error).strip().split("\n", 1)[0]  # Qhull's messages run to 30 lines
     return printable(f"{type(error).__name__}: {text}"[:300])
 
@@ -145,6 +166,8 @@ def _exit_now(code: int) -> NoReturn:
     object one by one: 0.22-0.26 s after a 1,000-clip build had finished its work. The output is
     flushed first; nothing here needs `atexit` (forked children and temporary folders are
     cleaned up by the command itself, before it returns)."""
+    import contextlib
+
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):  # a closed pipe (`| head`), a closed stream
             stream.flush()
@@ -153,6 +176,8 @@ def _exit_now(code: int) -> NoReturn:
 
 def run_here(words: list[str]) -> int:
     """Run the command in this process (also what the build server's forked process calls)."""
+    from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError, printable
+
     try:
         parser = build_parser(_chosen_command(words), lazy=True)
         args = parser.parse_args(words)

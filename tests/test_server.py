@@ -328,3 +328,20 @@ def test_server_start_where_there_is_no_fork_says_so(
     monkeypatch.setattr(address, "supported", lambda: False)
     assert main(["server", "start"]) == 2
     assert "not available on this platform" in capsys.readouterr().err
+
+
+def test_a_served_command_s_client_imports_only_the_client(server: dict[str, str], tmp_path: Path) -> None:
+    """The caller of a served command is a Python start, the client (json, socket, hashlib) and a
+    wait: argparse, the error types, traceback and the pipeline load only in a local run."""
+    manifest = _project(tmp_path)
+    probe = (
+        "import sys\n"
+        f"sys.argv = ['blendspace', 'check', {str(manifest)!r}]\n"
+        "from blendspace_pipeline import cli\n"
+        "code = cli.main()\n"  # a local run would end the process here (cli._exit_now)
+        "local = ('argparse', 'traceback', 'blendspace_pipeline.errors', 'numpy', 'pydantic')\n"
+        "print('LOADED', [m for m in local if m in sys.modules], 'CODE', code)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=server, check=False)
+    assert "LOADED [] CODE" in done.stdout, done.stdout + done.stderr
+    assert _status(server)["served"] == 1  # type: ignore[index]
