@@ -556,6 +556,20 @@ def test_a_file_matched_twice_belongs_to_the_explicit_entry(tmp_path: Path) -> N
     assert resolved == [("a.bvh", 0, 4, 5, None), ("c.bvh", 0, 4, 5, None), ("b.bvh", 2, 6, 5, "bee")]
 
 
+def test_a_symlink_and_its_target_are_one_clip(tmp_path: Path) -> None:
+    """A file reached through a linked file or a linked folder is the file it links to: listed
+    explicitly, it belongs to that entry; only the glob's spelling of it is dropped."""
+    touch(tmp_path, "clips/a.bvh", "clips/b.bvh")
+    (tmp_path / "alias.bvh").symlink_to(tmp_path / "clips" / "a.bvh")
+    (tmp_path / "mirror").symlink_to(tmp_path / "clips", target_is_directory=True)
+    loaded = load_clips(tmp_path, "  - path: clips/*.bvh\n  - path: alias.bvh\n  - path: mirror/b.bvh\n")
+    resolved = [(r.path.relative_to(tmp_path).as_posix(), r.entry_index) for r in resolve_clip_files(loaded)]
+    assert resolved == [("alias.bvh", 1), ("mirror/b.bvh", 2)]
+    loaded = load_clips(tmp_path, "  - path: clips/*.bvh\n  - path: mirror/*.bvh\n")
+    resolved = [(r.path.relative_to(tmp_path).as_posix(), r.entry_index) for r in resolve_clip_files(loaded)]
+    assert resolved == [("clips/a.bvh", 0), ("clips/b.bvh", 0)]
+
+
 def test_glob_that_matches_nothing_points_at_its_entry(tmp_path: Path) -> None:
     touch(tmp_path, "clips/walk.bvh")
     loaded = load_clips(tmp_path, "  - path: clips/walk.bvh\n  - {name: x, path: mocap/*.bvh}\n")

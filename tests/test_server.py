@@ -342,6 +342,8 @@ def test_a_served_command_s_client_imports_only_the_client(server: dict[str, str
         "local = ('argparse', 'traceback', 'blendspace_pipeline.errors', 'numpy', 'pydantic')\n"
         "print('LOADED', [m for m in local if m in sys.modules], 'CODE', code)\n"
     )
-    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=server, check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, env=server, check=False
+    )
     assert "LOADED [] CODE" in done.stdout, done.stdout + done.stderr
     assert _status(server)["served"] == 1  # type: ignore[index]

@@ -47,7 +47,7 @@ def resolve_clip_files(
     """
     entries = loaded.model.clips if entries is None else entries
     matched = [_files_of(loaded, entry, (*key, index)) for index, entry in enumerate(entries)]
-    folders: dict[str, Path] = {}
+    folders: dict[str, str] = {}
     identities = [[_identity(file, folders) for file in files] for files in matched]
     globbed = [_is_glob(loaded, entry) for entry in entries]
     owners = _owners(identities, globbed)
@@ -64,9 +64,9 @@ def resolve_clip_files(
     return resolved
 
 
-def _owners(identities: list[list[Path]], globbed: list[bool]) -> dict[Path, int]:
+def _owners(identities: list[list[str]], globbed: list[bool]) -> dict[str, int]:
     """Which entry a file belongs to: the first explicit entry naming it, else the first glob."""
-    owners: dict[Path, int] = {}
+    owners: dict[str, int] = {}
     for index, files in enumerate(identities):
         for identity in files:
             current = owners.get(identity)
@@ -75,8 +75,8 @@ def _owners(identities: list[list[Path]], globbed: list[bool]) -> dict[Path, int
     return owners
 
 
-def _identity(path: Path, folders: dict[str, Path]) -> Path:
-    """The file's real path: two spellings of one file (a symlink, `a/../b`) are one clip.
+def _identity(path: Path, folders: dict[str, str]) -> str:
+    """The file's real path, as text: two spellings of one file (a symlink, `a/../b`) are one clip.
 
     A glob's files share a folder, so the folder is resolved once (``folders`` remembers it, by
     its text: no Path is made per file to look it up) and each file costs one `lstat`; resolving
@@ -84,12 +84,13 @@ def _identity(path: Path, folders: dict[str, Path]) -> Path:
     """
     text = str(path)
     if os.path.islink(text):
-        return path.resolve()
+        return os.path.normcase(path.resolve())
     folder, name = os.path.split(text)
     real = folders.get(folder)
     if real is None:
-        real = folders[folder] = path.parent.resolve()
-    return real / name
+        real = folders[folder] = str(path.parent.resolve())
+    # normcase: Windows compares paths without case, as Path equality there does.
+    return os.path.normcase(os.path.join(real, name))
 
 
 def _pattern(entry: ClipEntry) -> str:
