@@ -16,7 +16,7 @@
        value Python's float(), numpy and pyarrow give. Anything else (another spelling, more
        digits, a wrong count) returns False, and the caller's parsers decide and name the line.
 
-   draw_lines, stamp_markers, blend_spans, box_mean
+   draw_lines, stamp_markers, blend_spans, box_mean, box_mean_bytes
        The PNG's rasteriser (report/png.py); see their comments below.
 
    slerp(a, b, t, out, count)
@@ -512,6 +512,60 @@ static PyObject *box_mean(PyObject *self, PyObject *args) {
     return PyBool_FromLong(ok);
 }
 
+/* box_mean_bytes(canvas, height, width, out, scale) -> bool
+   What `write_png` makes of `box_mean`'s result, in the same pass: each mean (the same float32
+   sum and division) times 255 in float32, rounded half to even (rint in the default rounding
+   mode, as numpy's rint), clipped to 0..255 and stored as a byte in ``out`` ((height / scale) *
+   (width / scale) * 3 bytes). ``out`` may be the start of ``canvas``: byte j is written after
+   every read of the float it lies in (float j / 4, which belongs to an earlier block). */
+static PyObject *box_mean_bytes(PyObject *self, PyObject *args) {
+    Py_buffer canvas, out;
+    Py_ssize_t height, width, scale;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "y*nnw*n", &canvas, &height, &width, &out, &scale)) return NULL;
+    int ok = canvas_ok(&canvas, height, width) && scale > 0 && height % scale == 0 && width % scale == 0 &&
+             out.len == (height / scale) * (width / scale) * 3 && PyBuffer_IsContiguous(&out, 'C');
+    if (ok) {
+        const float *in = (const float *)canvas.buf;
+        unsigned char *bytes = (unsigned char *)out.buf;
+        const float blocks = (float)(scale * scale);
+        const Py_ssize_t row = width * 3, columns = width / scale;
+        Py_BEGIN_ALLOW_THREADS
+        for (Py_ssize_t y = 0; y < height / scale; y++) {
+            const float *top = in + (y * scale) * row;
+            unsigned char *line = bytes + y * columns * 3;
+            for (Py_ssize_t i = 0; i < columns * 3; i++) {
+                const Py_ssize_t x = i / 3, c = i % 3;
+                float sum;
+                if (scale == 2) { /* the PNG's own scale: the general loop's four terms, in its order */
+                    const float *block = top + x * 6 + c;
+                    sum = 0.0f + block[0];
+                    sum += block[3];
+                    sum += block[row];
+                    sum += block[row + 3];
+                } else {
+                    sum = 0.0f + top[x * scale * 3 + c];
+                    for (Py_ssize_t dy = 0; dy < scale; dy++)
+                        for (Py_ssize_t dx = dy ? 0 : 1; dx < scale; dx++)
+                            sum += top[dy * row + (x * scale + dx) * 3 + c];
+                }
+                float value = (sum / blocks) * 255.0f;
+                /* Clipped first (the same result: 0 and 255 are whole numbers, and rounding keeps
+                   order), so NaN, which no colour makes, becomes 0 instead of undefined behaviour. */
+                value = value > 0.0f ? (value < 255.0f ? value : 255.0f) : 0.0f;
+                /* Half to even, as rint in the default rounding mode: at 2^23 a float's step is 1,
+                   so the addition rounds to a whole number and the subtraction is exact. */
+                value = (value + 8388608.0f) - 8388608.0f;
+                line[i] = (unsigned char)value;
+            }
+        }
+        Py_END_ALLOW_THREADS
+    }
+    PyBuffer_Release(&canvas);
+    PyBuffer_Release(&out);
+    return PyBool_FromLong(ok);
+}
+
 static PyMethodDef methods[] = {
     {"draw_lines", draw_lines, METH_VARARGS,
      "draw_lines(canvas, height, width, starts, ends, rgb) -> bool: one-pixel lines, as _Pen.lines draws them."},
@@ -523,6 +577,8 @@ static PyMethodDef methods[] = {
      "pixel-row spans, k overlapping ones at levels[k]."},
     {"box_mean", box_mean, METH_VARARGS,
      "box_mean(canvas, height, width, out, scale) -> bool: the mean of every scale x scale block."},
+    {"box_mean_bytes", box_mean_bytes, METH_VARARGS,
+     "box_mean_bytes(canvas, height, width, out, scale) -> bool: box_mean as 8-bit PNG samples."},
 
     {"slerp", slerp, METH_VARARGS,
      "slerp(a, b, t, out, count) -> bool: quaternions.slerp of count pairs, with the C library's acos and sin."},

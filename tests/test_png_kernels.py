@@ -1,4 +1,5 @@
-"""The PNG's compiled rasteriser (`_kernels.c`: draw_lines, stamp_markers, blend_spans, box_mean)
+"""The PNG's compiled rasteriser (`_kernels.c`: draw_lines, stamp_markers, blend_spans, box_mean,
+box_mean_bytes)
 against the numpy code it replaces (`report/png.py`), to the bit: each primitive on random and
 hostile shapes (off the canvas, zero length, hundreds stacked on one pixel), whole diagrams, and
 what the kernels decline."""
@@ -136,6 +137,57 @@ def test_the_box_filter_is_numpys(monkeypatch: pytest.MonkeyPatch) -> None:
     strided = np.asfortranarray(canvas)
     _same(png._box_mean(strided), into)
     assert strided.tobytes(order="A") == np.asfortranarray(canvas).tobytes(order="A")
+
+
+def _numpy_bytes(canvas: np.ndarray, monkeypatch: pytest.MonkeyPatch) -> np.ndarray:
+    monkeypatch.setattr(native, "kernels", None)
+    try:
+        return png._pixel_bytes(canvas.copy())
+    finally:
+        monkeypatch.setattr(native, "kernels", kernels)
+
+
+@pytest.mark.parametrize("scale", [2, 3])
+def test_the_png_bytes_are_numpys(monkeypatch: pytest.MonkeyPatch, scale: int) -> None:
+    """The 8-bit samples the kernel makes in the box filter's pass are numpy's mean * 255, rint,
+    clip and cast: on random colours, on means whose * 255 lands exactly on a half (both ways of
+    rounding it), below 0, above 1 and on the edges of float32's precision."""
+    monkeypatch.setattr(png, "SCALE", scale)
+    rng = np.random.default_rng(scale)
+    ties = np.array([(k + 0.5) / 255.0 for k in range(255)], dtype=np.float32)
+    hostile = np.concatenate(
+        [ties, np.nextafter(ties, np.float32(0)), np.nextafter(ties, np.float32(2)),
+         np.array([0, -0.0, 1, -1, 2, 1e-30, 1 - 2**-24, 255.5 / 255, 1e30, -1e30], np.float32)]
+    )  # fmt: skip
+    values = rng.uniform(-0.1, 1.1, size=HEIGHT * WIDTH * 3).astype(np.float32)
+    values[: hostile.size] = hostile
+    # Every block uniform: at scale 2 its mean is exactly its value (four equal floats / 4).
+    blocks = np.broadcast_to(values.reshape(HEIGHT, 1, WIDTH, 1, 3), (HEIGHT, scale, WIDTH, scale, 3))
+    canvas = np.ascontiguousarray(blocks).reshape(scale * HEIGHT, scale * WIDTH, 3)
+    if scale == 2:
+        assert np.array_equal(png._box_mean(canvas.copy()).reshape(-1)[: hostile.size], hostile)
+    expected = _numpy_bytes(canvas, monkeypatch)
+    made = canvas.copy()
+    got = png._pixel_bytes(made)
+    _same(got, expected)
+    assert np.shares_memory(got, made)  # over the canvas, no new image-sized array
+    # Random, not uniform, blocks too (the sum's order).
+    canvas = rng.uniform(-0.1, 1.1, size=(scale * HEIGHT, scale * WIDTH, 3)).astype(np.float32)
+    _same(png._pixel_bytes(canvas.copy()), _numpy_bytes(canvas, monkeypatch))
+    # A canvas the kernel may not write is converted by numpy, and left as it was.
+    frozen = canvas.copy()
+    frozen.flags.writeable = False
+    _same(png._pixel_bytes(frozen), _numpy_bytes(canvas, monkeypatch))
+
+
+def test_the_png_bytes_kernel_declines_a_wrong_size() -> None:
+    assert kernels is not None
+    canvas = _canvas(1)
+    before = canvas.copy()
+    assert not kernels.box_mean_bytes(canvas, HEIGHT, WIDTH, np.empty(HEIGHT * WIDTH, np.uint8), 2)
+    assert not kernels.box_mean_bytes(canvas, HEIGHT, WIDTH, np.empty(12 * 17 * 3, np.uint8), 7)
+    assert np.array_equal(canvas, before)
+    assert kernels.box_mean_bytes(canvas, HEIGHT, WIDTH, np.empty(45 * 60 * 3, np.uint8), 2)
 
 
 def _crowded_document() -> BlendSpaceDocument:
