@@ -1,8 +1,7 @@
 """The PNG's compiled rasteriser (`_kernels.c`: draw_lines, stamp_markers, blend_spans, box_mean,
-box_mean_bytes)
-against the numpy code it replaces (`report/png.py`), to the bit: each primitive on random and
-hostile shapes (off the canvas, zero length, hundreds stacked on one pixel), whole diagrams, and
-what the kernels decline."""
+box_mean_bytes) against the numpy code it replaces (`report/png.py`), to the bit: each primitive
+on random and hostile shapes (off the canvas, zero length, hundreds stacked on one pixel), whole
+diagrams, and what the kernels decline."""
 
 from __future__ import annotations
 
