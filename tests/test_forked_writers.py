@@ -323,3 +323,100 @@ def test_without_fork_jobs_2_writes_everything_here_in_order(
     monkeypatch.setattr(report, "write_html_report", real_html)
     assert _build(manifest, tmp_path / "serial", capsys, 1)[0] in (0, 1)
     assert _outputs(tmp_path / "no-fork") == _outputs(tmp_path / "serial")
+
+
+def _diagram_pngs(result: object, folder: Path) -> tuple[bytes, bytes]:
+    """The PNG of a build's whole document and of its `diagram_document`."""
+    from blendspace_pipeline.pipeline.outputs import BuildResult
+    from blendspace_pipeline.pipeline.to_document import diagram_document
+    from blendspace_pipeline.report import write_png
+
+    assert isinstance(result, BuildResult)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_png(result.document, folder / "whole.png")
+    write_png(diagram_document(result.space, result.out_dir), folder / "diagram.png")
+    return (folder / "whole.png").read_bytes(), (folder / "diagram.png").read_bytes()
+
+
+def test_the_diagram_document_draws_the_png_of_the_whole_document(tmp_path: Path) -> None:
+    """`--jobs 2` draws the PNG from `diagram_document` (no clip facts, markers, layers or build
+    settings): the same bytes as from the whole document, on the sample project (generated clips,
+    a beta layer, studio rules, placeholders) and on real clips."""
+    from blendspace_pipeline.pipeline.outputs import build
+    from blendspace_pipeline.pipeline.to_document import diagram_document
+
+    sample = Path(__file__).resolve().parents[1] / "sample_project"
+    copy = tmp_path / "sample"
+    import shutil
+
+    shutil.copytree(sample, copy, ignore=shutil.ignore_patterns("build", "__pycache__"))
+    result = build(copy / "manifest.yaml", tmp_path / "sample-out")
+    assert result.fixes.generated and result.document.placeholders and result.document.layers
+    whole, diagram = _diagram_pngs(result, tmp_path / "sample-png")
+    assert whole == diagram
+    lite = diagram_document(result.space, result.out_dir)
+    assert lite.layers == [] and lite.build is None and all(s.clip is None for s in lite.samples)
+    assert [s.position for s in lite.samples] == [s.position for s in result.document.samples]
+    data = shared_data("cmu", "131_01.bvh").parent
+    manifest = tmp_path / "real.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: real\nskeleton: {units: 0.0564}\nclips:\n"
+        f"  - path: '{data.as_posix()}/131_01.bvh'\n    name: walk_01\n    range: [2.0, 6.0]\n"
+        f"  - path: '{data.as_posix()}/131_02.bvh'\n    name: walk_02\n",
+        encoding="utf-8",
+    )
+    whole, diagram = _diagram_pngs(build(manifest, tmp_path / "real-out"), tmp_path / "real-png")
+    assert whole == diagram
+
+
+def test_the_png_drawn_before_the_document_is_published_only_when_it_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--jobs 2` forks the PNG's writer before the document is made: its file is the serial
+    build's, drawn in a folder of its own that is never published; when the previous generation's
+    PNG is still right (the document did not change) the early child is stopped."""
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))  # outputs are reused
+    from blendspace_pipeline import report
+
+    real = report.write_png
+    log = tmp_path / "png-writers"
+
+    def recording(doc: object, path: Path) -> None:
+        real(doc, path)  # type: ignore[arg-type]
+        with log.open("a", encoding="utf-8") as stream:
+            stream.write(f"{os.getpid()} {path.parent.name}\n")
+
+    monkeypatch.setattr(report, "write_png", recording)
+    manifest = _project(tmp_path / "p")
+    out = tmp_path / "out"
+    code, err = _build(manifest, out, capsys, 2)
+    assert code in (0, 1), err
+    pid, folder = log.read_text(encoding="utf-8").split()
+    assert int(pid) != os.getpid() and folder == ".early-png"
+    assert _build(manifest, tmp_path / "serial", capsys, 1)[0] == code
+    assert _outputs(out) == _outputs(tmp_path / "serial")
+    generation = (out / ".blendspace" / "t" / "current").resolve()
+    assert not [p.name for p in generation.rglob(".*")]  # no early folder, no temporary file
+
+    # The same document again (a comment in the manifest misses the build stamp): every output
+    # is linked in from the previous generation, and the early drawing is stopped unseen.
+    before = _outputs(out)
+    finished = tmp_path / "late-png-finished"
+
+    def slow(doc: object, path: Path) -> None:
+        import time
+
+        time.sleep(2)
+        real(doc, path)  # type: ignore[arg-type]
+        finished.write_text("x", encoding="utf-8")
+
+    monkeypatch.setattr(report, "write_png", slow)
+    manifest.write_text(manifest.read_text(encoding="utf-8") + "# reviewed\n", encoding="utf-8")
+    assert _build(manifest, out, capsys, 2)[0] == code
+    assert _outputs(out) == before
+    assert (out / ".blendspace" / "t" / "current").resolve() == generation
+    assert not [p.name for p in generation.rglob(".*")]
+    import time
+
+    time.sleep(2.5)
+    assert not finished.exists()
