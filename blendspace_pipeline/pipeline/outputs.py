@@ -64,7 +64,7 @@ from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.forked import Children, Task, can_fork, run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
 from blendspace_pipeline.pipeline.progress import Progress
-from blendspace_pipeline.pipeline.to_document import diagram_document, to_document
+from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.report.atomic import verify_written
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace
@@ -346,37 +346,14 @@ def _write_outputs(
         for sample in sub.samples:
             if sample.generated:
                 sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}{source_suffix(sub)}"
+    document = to_document(space, out_dir)
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
-    drawing: Children | None = None
     try:
-        report = _ReportParts(space)
-        writers = _writers(report)
-        # With --jobs N this process is one writer and N - 1 forked processes are the others (a
-        # fork costs a copy of the page tables, so no more): the longest outputs that do not show
-        # the blend quality (the PNG first) start now, beside the foot-skate map, and this process
-        # writes the rest of them while the map's workers play; after it, up to N - 1 of the rest
-        # fork (the longest first) and this process writes what is left, in order.
-        # A failure is raised as the serial order of `formats` would have raised it.
-        parallel = jobs > 1 and can_fork()
-        slots = jobs - 1 if parallel else 0
-        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)
-        early, beside = (blind[:slots], blind[slots:]) if parallel else ([], [])
-        # The PNG (the longest writer of an edit) starts drawing before this process has made the
-        # document: its child makes the part it draws (`diagram_document`, 0.04 of the document's
-        # 0.12 s on 1,000 clips) on the core this process leaves idle meanwhile. Its file is taken
-        # only when the PNG must be written (`plan` below); otherwise the child is stopped.
-        # It draws in a folder of its own, removed before the staging folder is published (a
-        # stopped child may leave a temporary file).
-        early_folder = staging / ".early-png"
-        early_png = early_folder / f"{space.name}{writers['png'][0]}"
-        if "png" in early:
-            early_folder.mkdir()
-            draw = functools.partial(_draw_early, writers["png"][1], space, out_dir, early_png)
-            drawing = Children([draw], 1)
-        document = to_document(space, out_dir)
         # Each document output is written only when what it is made of changed (`_output_inputs`);
         # otherwise the previous generation's file, checked to be the one written, is linked in.
+        report = _ReportParts(space)
+        writers = _writers(report)
         home = out_dir / GENERATIONS / safe_file_stem(space.name)
         previous = _read_record(home)
         inputs_of: dict[str, str] = {}
@@ -403,14 +380,19 @@ def _write_outputs(
                 inputs_of[file_name] = inputs
             return to_write
 
+        # With --jobs N this process is one writer and N - 1 forked processes are the others (a
+        # fork costs a copy of the page tables, so no more): the longest outputs that do not show
+        # the blend quality (the PNG first) start now, beside the foot-skate map, and this process
+        # writes the rest of them while the map's workers play; after it, up to N - 1 of the rest
+        # fork (the longest first) and this process writes what is left, in order.
+        # A failure is raised as the serial order of `formats` would have raised it.
+        parallel = jobs > 1 and can_fork()
+        slots = jobs - 1 if parallel else 0
+        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)
+        early, beside = (blind[:slots], blind[slots:]) if parallel else ([], [])
         blind_text = document.model_dump_json(indent=2) + "\n" if early or beside else None
         started = plan(early, blind_text) if blind_text is not None else []
         here = plan(beside, blind_text) if blind_text is not None else []
-        adopted = drawing is not None and "png" in started
-        if drawing is not None and not adopted:
-            drawing.kill()  # the previous generation's PNG is linked in instead
-            shutil.rmtree(early_folder)
-        started = [name for name in started if not (adopted and name == "png")]
         errors: dict[int, BaseException] = {}
         waiting = list(here)
 
@@ -476,12 +458,6 @@ def _write_outputs(
                         break  # a serial build would not have written the next ones either
                 errors |= {formats.index(forked[i]): error for i, error in rest.wait().items()}
             errors |= {formats.index(started[i]): error for i, error in children.wait().items()}
-            if adopted and drawing is not None:
-                if failed := drawing.wait():
-                    errors[formats.index("png")] = failed[0]
-                else:
-                    os.replace(early_png, staging / early_png.name)
-                    shutil.rmtree(early_folder)
         if errors:
             raise errors[min(errors)]
         staged += [Path(f"{space.name}{writers[name][0]}") for name in formats]
@@ -494,8 +470,6 @@ def _write_outputs(
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
     finally:
-        if drawing is not None:
-            drawing.kill()  # never writing into the folder removed below
         shutil.rmtree(staging, ignore_errors=True)
 
 
@@ -524,14 +498,6 @@ _WITHOUT_BLEND_QUALITY = frozenset({"png", "usd"})
 # The writers from the longest to the shortest (PNG ~1 s, HTML ~0.4 s, USD ~0.3 s on 1,000 clips):
 # in parallel, the longest starts first so the others fit beside it.
 _WRITER_ORDER = ("png", "html", "usd", "json")
-
-
-def _draw_early(
-    writer: Callable[[BlendSpaceDocument, Path], None], space: BlendSpace, out_dir: Path, target: Path
-) -> None:
-    """The PNG of ``space``, drawn from its `diagram_document` (in a forked child; see
-    `_write_outputs`)."""
-    _write_one("png", writer, diagram_document(space, out_dir), "", target)
 
 
 def _write_one(

@@ -64,8 +64,7 @@ def _relative_folder(folder: str, base: str, cwd: str) -> tuple[str, bool] | Non
     return relative, set(relative.split("/")) == {".."}
 
 
-def _sample_doc(sample: Sample, out_dir: Path, *, clip_facts: bool = True) -> SampleDoc:
-    """``clip_facts=False``: without the clip's facts, contacts and markers (`diagram_document`)."""
+def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
     m = sample.clip.measurement
     entry = sample.clip.entry
     return SampleDoc(
@@ -77,9 +76,9 @@ def _sample_doc(sample: Sample, out_dir: Path, *, clip_facts: bool = True) -> Sa
         fix=sample.fix,
         snapping_error=[_r(e) for e in sample.snapping_error],
         manual_position=[float(v) for v in entry.position] if entry.position is not None else None,
-        clip=_clip_info(sample.clip) if clip_facts else None,
-        contacts=m.contacts if clip_facts else None,
-        markers=_markers(m.contacts, m.features["duration"]) if clip_facts else None,
+        clip=_clip_info(sample.clip),
+        contacts=m.contacts,
+        markers=_markers(m.contacts, m.features["duration"]),
     )
 
 
@@ -166,18 +165,7 @@ def diagnostic_doc(diagnostic: Diagnostic, out_dir: Path | None = None) -> Diagn
     )
 
 
-def diagram_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
-    """`to_document` without what the diagram (`report.png`, `report.diagram`) never reads: the
-    clips' facts, contacts and markers, the layers and the build's settings. A forked PNG writer
-    makes it in a third of the document's time (0.04 against 0.12 s on 1,000 clips), so it can
-    start drawing while this process still makes the whole document; `tests/test_forked_writers.py`
-    checks that the PNG of both is the same bytes."""
-    return to_document(space, out_dir, diagram_only=True)
-
-
-def to_document(space: BlendSpace, out_dir: Path, *, diagram_only: bool = False) -> BlendSpaceDocument:
-    """The blend-space JSON of ``space``, its paths relative to ``out_dir`` (``diagram_only``:
-    see `diagram_document`)."""
+def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
     model = space.manifest.model
     return BlendSpaceDocument(
         schema_version=1,
@@ -193,7 +181,7 @@ def to_document(space: BlendSpace, out_dir: Path, *, diagram_only: bool = False)
             )
             for a in space.axes
         ],
-        samples=[_sample_doc(s, out_dir, clip_facts=not diagram_only) for s in space.samples],
+        samples=[_sample_doc(s, out_dir) for s in space.samples],
         triangles=[list(t) for t in space.triangles],
         diagnostics=[diagnostic_doc(d, out_dir) for d in space.diagnostics],
         placeholders=[
@@ -206,12 +194,8 @@ def to_document(space: BlendSpace, out_dir: Path, *, diagram_only: bool = False)
             )
             for p in space.placeholders
         ],
-        layers=[]
-        if diagram_only
-        else [layer_doc(layer, out_dir).model_dump(mode="json") for layer in space.layer_spaces],
-        build=None
-        if diagram_only
-        else BuildInfoDoc(
+        layers=[layer_doc(layer, out_dir).model_dump(mode="json") for layer in space.layer_spaces],
+        build=BuildInfoDoc(
             tool_version=__version__,
             manifest=relative_path(space.manifest.path, out_dir),
             thresholds=model.thresholds.model_dump(),
