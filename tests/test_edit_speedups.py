@@ -1,6 +1,7 @@
 """Shortcuts of the edit path give what the slow ways gave: `relative_path` makes each folder
 relative once and joins the file name (the text of `os.path.relpath` of the whole path, paths
-that lead back into the base's own folder included); stamps serialise file states as `asdict`."""
+that lead back into the base's own folder included); stamps serialise file states as `asdict`;
+what the build server warms is what a build computes."""
 
 from __future__ import annotations
 
@@ -83,3 +84,30 @@ def test_snap_rounds_as_numpy_did() -> None:
         for value in values:
             assert repr(axis.snap(value)) == repr(numpy_snap(axis, value)), (axis, value)
         assert math.isnan(axis.snap(math.nan))
+
+
+def test_what_the_server_warms_is_what_a_build_computes(tmp_path: Path) -> None:
+    """`outputs.warm` (the build server calls it before it forks commands) fills the code digest,
+    the writer libraries' versions and the legend's rendered text; a PNG drawn with them is the
+    PNG drawn without, and the remembered text cannot be changed by a drawing."""
+    from test_report import sample_document
+
+    from blendspace_pipeline.pipeline import outputs
+    from blendspace_pipeline.report import png
+
+    doc = sample_document()
+    for cached in (outputs._code_digest, outputs._library_version, png._text_coverage):
+        cached.cache_clear()
+    png.write_png(doc, tmp_path / "cold.png")
+    digest = outputs._code_digest()
+    png._text_coverage.cache_clear()
+    outputs._code_digest.cache_clear()
+    outputs.warm()
+    assert outputs._code_digest.cache_info().currsize == 1 and outputs._code_digest() == digest
+    assert outputs._library_version.cache_info().currsize == 3  # usd-core, OpenImageIO, numpy
+    if png._font() is not None:
+        assert png._text_coverage.cache_info().currsize == len(png.LEGEND) + 1
+        alpha = png._text_coverage(png.LEGEND[0][1], 13 * png.SCALE, png._font(), "left")[0]
+        assert not alpha.flags.writeable
+    png.write_png(doc, tmp_path / "warm.png")
+    assert (tmp_path / "warm.png").read_bytes() == (tmp_path / "cold.png").read_bytes()

@@ -188,6 +188,21 @@ def _output_inputs(name: str, file_name: str, document_digest: str, report: _Rep
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 
+def warm() -> None:
+    """Compute now what every build of this installed code computes alike: the code digest, the
+    writer libraries' versions, the PNG's font and legend. The build server calls it once, and
+    the commands it forks inherit them (about 30 ms of a served 1,000-clip build). They hold as
+    long as the code does, and a server never runs a command for code that moved
+    (`server.address.fingerprint`)."""
+    from blendspace_pipeline.report.png import warm as warm_png
+
+    _code_digest()
+    for libraries in _WRITER_LIBRARIES.values():
+        for library in libraries:
+            _library_version(library)
+    warm_png()
+
+
 @functools.cache
 def _code_digest() -> str:
     """Size and mtime of every source file of the package: a checkout of other writer code under

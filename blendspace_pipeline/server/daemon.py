@@ -313,6 +313,10 @@ def _flush() -> None:
 def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
     """Preload, listen and answer until stopped; 0 on a clean stop."""
     _missing, imported_env = preload()
+    from blendspace_pipeline.pipeline.outputs import warm
+
+    with contextlib.suppress(Exception):  # a command that needs them makes them, and reports why not
+        warm()
     # Every forked command inherits the allocator settings of the measuring workers: a served
     # `--jobs 1` build measures clips without a page fault per fresh page either.
     from blendspace_pipeline.memory import collect_less, keep_freed_memory
