@@ -138,3 +138,41 @@ def test_a_report_finished_from_its_draft_is_the_page_drawn_at_once(manifest: Pa
     assert html.render_html(built, stamp="then", draft=draft) == whole
     other = built.model_copy(update={"name": "other"})
     assert html.render_html(other, stamp="then", draft=draft) == html.render_html(other, stamp="then")
+
+
+def test_the_child_s_document_holds_what_the_maps_read(manifest: Path) -> None:
+    """The child makes `maps_document` (no contacts, markers, findings, layers): the same maps and
+    the same digest as the whole document; and the digest moves with every field the maps read
+    (positions, features, the clips' gait periods, triangles, axes)."""
+    from blendspace_pipeline.pipeline.blend_quality import blend_quality
+    from blendspace_pipeline.pipeline.outputs import build
+    from blendspace_pipeline.pipeline.to_document import maps_document
+
+    result = build(manifest, manifest.parent / "out", fix=False)
+    whole = result.document.model_copy(update={"blend_quality": None}, deep=True)
+    lite = maps_document(result.space, result.out_dir)
+    assert lite.diagnostics == [] and all(s.markers is None and s.contacts is None for s in lite.samples)
+    assert any(s.markers for s in whole.samples)
+    assert early_quality.quality_inputs(lite) == early_quality.quality_inputs(whole)
+    maps = blend_quality(result.space, lite, {}, sync=result.space.manifest.model.blend.sync)
+    assert maps == result.document.blend_quality
+    digest = early_quality.quality_inputs(whole)
+
+    def moved(change: str) -> str:
+        doc = whole.model_copy(deep=True)
+        sample = doc.samples[0]
+        if change == "position":
+            sample.position = [sample.position[0] + 1e-6, sample.position[1]]
+        elif change == "features":
+            sample.features = {**sample.features, "forward_speed": sample.features["forward_speed"] + 0.1}
+        elif change == "gait_period":
+            assert sample.clip is not None
+            sample.clip.gait_period = (sample.clip.gait_period or 1.0) + 0.1
+        elif change == "triangles":
+            doc.triangles = doc.triangles[1:]
+        else:
+            doc.axes[0].max += 1.0
+        return early_quality.quality_inputs(doc)
+
+    for change in ("position", "features", "gait_period", "triangles", "axes"):
+        assert moved(change) != digest, change

@@ -21,7 +21,7 @@ from pathlib import Path
 from blendspace_pipeline.motion.blend_model import SyncMode
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.forked import Children
-from blendspace_pipeline.pipeline.to_document import to_document
+from blendspace_pipeline.pipeline.to_document import maps_document
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument
 from blendspace_pipeline.space.model import BlendSpace
 
@@ -57,11 +57,15 @@ class EarlyQuality:
 
 
 def quality_inputs(document: BlendSpaceDocument) -> str:
-    """Digest of what the maps are computed from (8 ms for 1,000 samples)."""
-    text = document.model_dump_json(include={"axes", "samples", "triangles"})
+    """Digest of what the maps are computed from (8 ms for 1,000 samples): the axes, the
+    triangles and the samples but their contacts and markers, which `maps_document` leaves out
+    (the maps play each clip's measured contacts, not the document's)."""
+    text = document.model_dump_json(
+        include={"axes", "samples", "triangles"}, exclude={"samples": {"__all__": {"contacts", "markers"}}}
+    )
     return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _maps(space: BlendSpace, out_dir: Path, sync: SyncMode, jobs: int) -> tuple[str, BlendQualityDoc]:
-    document = to_document(space, out_dir)
+    document = maps_document(space, out_dir)
     return quality_inputs(document), blend_quality(space, document, {}, sync=sync, jobs=jobs)

@@ -64,7 +64,8 @@ def _relative_folder(folder: str, base: str, cwd: str) -> tuple[str, bool] | Non
     return relative, set(relative.split("/")) == {".."}
 
 
-def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
+def _sample_doc(sample: Sample, out_dir: Path, *, events: bool = True) -> SampleDoc:
+    """``events=False``: without the foot contacts and sync markers (`maps_document`)."""
     m = sample.clip.measurement
     entry = sample.clip.entry
     return SampleDoc(
@@ -77,8 +78,8 @@ def _sample_doc(sample: Sample, out_dir: Path) -> SampleDoc:
         snapping_error=[_r(e) for e in sample.snapping_error],
         manual_position=[float(v) for v in entry.position] if entry.position is not None else None,
         clip=_clip_info(sample.clip),
-        contacts=m.contacts,
-        markers=_markers(m.contacts, m.features["duration"]),
+        contacts=m.contacts if events else None,
+        markers=_markers(m.contacts, m.features["duration"]) if events else None,
     )
 
 
@@ -165,22 +166,40 @@ def diagnostic_doc(diagnostic: Diagnostic, out_dir: Path | None = None) -> Diagn
     )
 
 
+def maps_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
+    """What the blend quality maps read of `to_document(space, out_dir)`: the axes, the triangles
+    and the samples without their foot contacts and sync markers (the maps play the clips' own
+    contacts), and none of the findings, placeholders, layers or build settings. The early maps
+    child (`early_quality`) makes it in half of the whole document's time."""
+    return BlendSpaceDocument(
+        schema_version=1,
+        name=space.name,
+        axes=_axis_docs(space),
+        samples=[_sample_doc(s, out_dir, events=False) for s in space.samples],
+        triangles=[list(t) for t in space.triangles],
+    )
+
+
+def _axis_docs(space: BlendSpace) -> list[AxisDoc]:
+    return [
+        AxisDoc(
+            name=a.name,  # type: ignore[arg-type]  # placement axes are named "x"/"y"
+            feature=a.feature,
+            min=a.minimum,
+            max=a.maximum,
+            divisions=a.divisions,
+            unit=FEATURE_UNITS[a.feature],
+        )
+        for a in space.axes
+    ]
+
+
 def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
     model = space.manifest.model
     return BlendSpaceDocument(
         schema_version=1,
         name=space.name,
-        axes=[
-            AxisDoc(
-                name=a.name,  # type: ignore[arg-type]  # placement axes are named "x"/"y"
-                feature=a.feature,
-                min=a.minimum,
-                max=a.maximum,
-                divisions=a.divisions,
-                unit=FEATURE_UNITS[a.feature],
-            )
-            for a in space.axes
-        ],
+        axes=_axis_docs(space),
         samples=[_sample_doc(s, out_dir) for s in space.samples],
         triangles=[list(t) for t in space.triangles],
         diagnostics=[diagnostic_doc(d, out_dir) for d in space.diagnostics],
