@@ -716,7 +716,7 @@ def warm() -> None:
     _draw_legend(np.zeros((1, 1, 3), dtype=np.float32), (0.0, 0.0))
 
 
-@lru_cache(maxsize=256)
+@lru_cache(maxsize=64)  # a patch is 30-300 KB; a 1,000-clip diagram draws 26 (2 MB)
 def _text_coverage(text: str, size: int, font: str, align: str) -> tuple[np.ndarray, int, int]:
     """The text's coverage (0..1) on a patch, and the patch pixel of the text's origin: the patch
     is twice the text's width around the origin, so any alignment fits. Remembered (read-only):
