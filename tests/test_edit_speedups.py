@@ -111,3 +111,23 @@ def test_what_the_server_warms_is_what_a_build_computes(tmp_path: Path) -> None:
         assert not alpha.flags.writeable
     png.write_png(doc, tmp_path / "warm.png")
     assert (tmp_path / "warm.png").read_bytes() == (tmp_path / "cold.png").read_bytes()
+
+
+def test_without_a_font_the_server_warms_nothing_and_each_command_warns(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A warning is shown once per process, and a forked command inherits that memory: the
+    server's warm-up must not warn, or no served build would tell its caller the PNG has no text."""
+    import warnings
+
+    from test_report import sample_document
+
+    from blendspace_pipeline.report import png
+
+    monkeypatch.setattr(png, "_found_font", lambda: None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        png.warm()
+    assert caught == []
+    with pytest.warns(UserWarning, match="found no font"):
+        png.write_png(sample_document(), tmp_path / "plain.png")

@@ -665,17 +665,27 @@ def _draw_labels(canvas: Canvas, scene: Scene) -> None:
 # ---- text ---------------------------------------------------------------------------------------
 
 
-@cache
 def _font() -> str | None:
-    """A font OIIO can render with: the wheel bundles DroidSans; None (no labels) when none works."""
+    """A font OIIO can render with: the wheel bundles DroidSans; None (no labels, and a warning
+    once per process) when none works."""
+    font = _found_font()
+    if font is None:
+        warnings.warn(
+            "OpenImageIO found no font: the PNG is drawn without text (install fonts-dejavu-core)",
+            stacklevel=2,
+        )
+    return font
+
+
+@cache
+def _found_font() -> str | None:
+    """The probe behind `_font`, silent: `warm` runs it in the build server, whose commands must
+    still warn their own callers (a warning shown once is not shown again in a forked process)."""
     probe = oiio.ImageBuf(oiio.ImageSpec(64, 32, 3, "float"))
     for name in ("DroidSans", "DejaVuSans", ""):
         if algo.render_text(probe, 2, 20, "Ag", 12, name, (1.0, 1.0, 1.0)):
             return name
         probe.geterror()  # clear the error so the next attempt reports its own
-    warnings.warn(
-        "OpenImageIO found no font: the PNG is drawn without text (install fonts-dejavu-core)", stacklevel=2
-    )
     return None
 
 
@@ -712,8 +722,10 @@ def warm() -> None:
     """Render now what every diagram draws the same (the font probe, the legend's text), for a
     process that forks the PNG's writers (the build server): each then starts with them, about
     20 ms of a served build's PNG. The legend is drawn on one pixel: its text is rendered (and
-    remembered by `_text_coverage`) before it is placed."""
-    _draw_legend(np.zeros((1, 1, 3), dtype=np.float32), (0.0, 0.0))
+    remembered by `_text_coverage`) before it is placed. Without a font it does nothing (each
+    command warns its own caller)."""
+    if _found_font() is not None:
+        _draw_legend(np.zeros((1, 1, 3), dtype=np.float32), (0.0, 0.0))
 
 
 @lru_cache(maxsize=64)  # a patch is 30-300 KB; a 1,000-clip diagram draws 26 (2 MB)
