@@ -119,7 +119,7 @@ def studio_table(folder: Path | None) -> tuple[list[str], bool]:
     return lines, ok
 
 
-def _raw_turn(clip: Clip, pos: np.ndarray) -> float:  # type: ignore[type-arg]
+def _raw_turn(clip: Clip, pos: np.ndarray) -> float:
     """Turn as before issue 10: hip-line facing of the first frame after the T-pose vs the last."""
     names = clip.skeleton.names
     left, right = names.index("LeftUpLeg"), names.index("RightUpLeg")

@@ -19,6 +19,7 @@ machine wall-clock time mostly measures the neighbours. Nothing here asserts a t
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import tempfile
 import time
@@ -34,7 +35,7 @@ from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.motion.measure import Measurement
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.measure_stage import measure_files, rig_settings
-from blendspace_pipeline.pipeline.outputs import _writers
+from blendspace_pipeline.pipeline.outputs import _ReportParts, _writers
 from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.space.model import assemble
 
@@ -102,8 +103,8 @@ def run_stages(manifest: Path, out: Path) -> dict[str, float]:
     t, doc = timed(lambda: to_document(space, out))
     seconds["document"] = t
     out.mkdir(parents=True, exist_ok=True)
-    for name, (suffix, writer) in _writers(space).items():
-        t, _ = timed(lambda writer=writer, suffix=suffix: writer(doc, out / f"{space.name}{suffix}"))
+    for name, (suffix, writer) in _writers(_ReportParts(space)).items():
+        t, _ = timed(functools.partial(writer, doc, out / f"{space.name}{suffix}"))
         seconds[f"write {name}"] = t
     return seconds
 
