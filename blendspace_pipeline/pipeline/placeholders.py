@@ -294,7 +294,7 @@ def _near_samples(points: list[tuple[float, float]], staying: NDArray[np.float64
         return [False] * len(points)
     if not _PREFILTERED[0] <= tau <= _PREFILTERED[1]:
         everyone = staying.tolist()
-        return [not all(math.hypot(x - qx, y - qy) >= tau for qx, qy in everyone) for x, y in points]
+        return [_within(point, everyone, tau) for point in points]
     at = np.array(points, dtype=np.float64)
     offsets = staying[None, :, :] - at[:, None, :]
     squares = np.einsum("ijk,ijk->ij", offsets, offsets)
@@ -303,10 +303,15 @@ def _near_samples(points: list[tuple[float, float]], staying: NDArray[np.float64
     unsure = ~(squares >= (tau * (1.0 + 1e-6)) ** 2)
     answers: list[bool] = near.tolist()
     for index in np.flatnonzero(~near & unsure.any(axis=1)).tolist():
-        x, y = points[index]
-        close = staying[unsure[index]].tolist()
-        answers[index] = not all(math.hypot(x - qx, y - qy) >= tau for qx, qy in close)
+        answers[index] = _within(points[index], staying[unsure[index]].tolist(), tau)
     return answers
+
+
+def _within(point: tuple[float, float], samples: list[list[float]], tau: float) -> bool:
+    """The scan itself: whether a sample is not at least ``tau`` from ``point`` (`math.hypot`;
+    a NaN distance counts as near, as it fails the comparison)."""
+    x, y = point
+    return not all(math.hypot(x - qx, y - qy) >= tau for qx, qy in samples)
 
 
 def _staying(space: BlendSpace, without: tuple[str, ...]) -> NDArray[np.float64]:
