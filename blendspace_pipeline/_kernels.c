@@ -478,6 +478,26 @@ static PyObject *blend_spans(PyObject *self, PyObject *args) {
     return PyBool_FromLong(ok);
 }
 
+/* The sum of sample i (pixel i / 3, channel i % 3) of one output row over its scale x scale block
+   of canvas rows starting at ``top`` (``row`` floats each): 0 + the block's first pixel, plus the
+   others in row-major order, in float32, as `_box_mean` sums the strided views. Scale 2, the
+   PNG's, is spelled out (the same four terms in the same order). */
+static inline float block_sum(const float *top, Py_ssize_t row, Py_ssize_t i, Py_ssize_t scale) {
+    const Py_ssize_t x = i / 3, c = i % 3;
+    if (scale == 2) {
+        const float *block = top + x * 6 + c;
+        float sum = 0.0f + block[0];
+        sum += block[3];
+        sum += block[row];
+        sum += block[row + 3];
+        return sum;
+    }
+    float sum = 0.0f + top[x * scale * 3 + c];
+    for (Py_ssize_t dy = 0; dy < scale; dy++)
+        for (Py_ssize_t dx = dy ? 0 : 1; dx < scale; dx++) sum += top[dy * row + (x * scale + dx) * 3 + c];
+    return sum;
+}
+
 /* box_mean(canvas, height, width, out, scale) -> bool
    The mean of every scale x scale block of the canvas into ``out`` ((height / scale,
    width / scale, 3) float32): 0 + the block's first pixel, plus the others in row-major order,
@@ -495,16 +515,11 @@ static PyObject *box_mean(PyObject *self, PyObject *args) {
         const float *in = (const float *)canvas.buf;
         float *mean = (float *)out.buf;
         const float blocks = (float)(scale * scale);
+        const Py_ssize_t row = width * 3, columns = width / scale;
         Py_BEGIN_ALLOW_THREADS
         for (Py_ssize_t y = 0; y < height / scale; y++)
-            for (Py_ssize_t x = 0; x < width / scale; x++)
-                for (int c = 0; c < 3; c++) {
-                    float sum = 0.0f + in[((y * scale) * width + x * scale) * 3 + c];
-                    for (Py_ssize_t dy = 0; dy < scale; dy++)
-                        for (Py_ssize_t dx = dy ? 0 : 1; dx < scale; dx++)
-                            sum += in[((y * scale + dy) * width + x * scale + dx) * 3 + c];
-                    mean[(y * (width / scale) + x) * 3 + c] = sum / blocks;
-                }
+            for (Py_ssize_t i = 0; i < columns * 3; i++)
+                mean[y * columns * 3 + i] = block_sum(in + (y * scale) * row, row, i, scale) / blocks;
         Py_END_ALLOW_THREADS
     }
     PyBuffer_Release(&canvas);
@@ -535,21 +550,7 @@ static PyObject *box_mean_bytes(PyObject *self, PyObject *args) {
             const float *top = in + (y * scale) * row;
             unsigned char *line = bytes + y * columns * 3;
             for (Py_ssize_t i = 0; i < columns * 3; i++) {
-                const Py_ssize_t x = i / 3, c = i % 3;
-                float sum;
-                if (scale == 2) { /* the PNG's own scale: the general loop's four terms, in its order */
-                    const float *block = top + x * 6 + c;
-                    sum = 0.0f + block[0];
-                    sum += block[3];
-                    sum += block[row];
-                    sum += block[row + 3];
-                } else {
-                    sum = 0.0f + top[x * scale * 3 + c];
-                    for (Py_ssize_t dy = 0; dy < scale; dy++)
-                        for (Py_ssize_t dx = dy ? 0 : 1; dx < scale; dx++)
-                            sum += top[dy * row + (x * scale + dx) * 3 + c];
-                }
-                float value = (sum / blocks) * 255.0f;
+                float value = (block_sum(top, row, i, scale) / blocks) * 255.0f;
                 /* Clipped first (the same result: 0 and 255 are whole numbers, and rounding keeps
                    order), so NaN, which no colour makes, becomes 0 instead of undefined behaviour. */
                 value = value > 0.0f ? (value < 255.0f ? value : 255.0f) : 0.0f;
