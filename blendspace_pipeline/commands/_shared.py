@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
 from blendspace_pipeline.checks.trust import NO_PLUGINS_VARIABLE
+from blendspace_pipeline.cpus import JOBS_VARIABLE, auto_jobs
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
 from blendspace_pipeline.pipeline.cache import LIBRARY_VARIABLE
@@ -102,10 +103,12 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--jobs",
-        type=_positive,
-        default=1,
+        type=_jobs,
+        default=os.environ.get(JOBS_VARIABLE) or "auto",
         metavar="N",
-        help="use N processes to measure clips, play the foot-skate map and write outputs (default 1)",
+        help="use N processes to measure clips, play the foot-skate map and write outputs; 'auto' "
+        "uses the CPUs this process may use on Linux (its affinity and cgroup quota), 1 elsewhere "
+        f"(default: {JOBS_VARIABLE}, else auto)",
     )
     parser.add_argument(
         "--library",
@@ -138,12 +141,17 @@ def command_environment(args: argparse.Namespace) -> Iterator[None]:
                 os.environ[name] = value
 
 
-def _positive(text: str) -> int:
-    """argparse type for --jobs: a whole number of at least 1 (argparse turns the error into exit 2)."""
+def _jobs(text: str) -> int:
+    """argparse type for --jobs: 'auto' or a whole number of at least 1 (argparse turns the error
+    into exit 2). argparse applies it to the default (BLENDSPACE_JOBS, else "auto") too."""
+    if text.strip().lower() == "auto":
+        return auto_jobs()
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a whole number or 'auto' (given as --jobs or {JOBS_VARIABLE})"
+        ) from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} processes cannot measure anything: give 1 or more")
     return value

@@ -1,0 +1,120 @@
+"""How many processes a command may usefully run: `--jobs auto`, the command line's default.
+
+`os.cpu_count()` counts the host's CPUs. A build in a container or a CI runner often may use
+fewer: its affinity mask (`taskset`, a cpuset) and its cgroup's CPU quota (`docker --cpus 2`, a
+Kubernetes CPU limit, a hosted runner) say how many, and a build that starts one worker per host
+CPU under a 2-CPU quota is throttled in bursts and runs slower than with two. This reads both,
+as the JVM and Go runtimes do.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+# `--jobs`' default when the option is not given: a number or "auto" (a CI job sets it once for
+# every command and hook it runs).
+JOBS_VARIABLE = "BLENDSPACE_JOBS"
+
+
+def auto_jobs() -> int:
+    """`--jobs auto`: the usable CPUs on Linux, where workers are forked from the command with its
+    modules loaded; 1 elsewhere, where each worker is a new Python that imports numpy, scipy and
+    usd-core again (about a second each) before it measures anything: there `--jobs N` pays off
+    for big libraries only, so the user asks for it."""
+    return usable_cpus() if sys.platform.startswith("linux") else 1
+
+
+def usable_cpus(root: Path = Path("/")) -> int:
+    """The CPUs this process can run on, at least 1: its affinity mask, capped by the CPU quota of
+    its cgroups (v2 `cpu.max`, v1 `cpu.cfs_quota_us`; a quota of 1.5 CPUs counts as 2).
+    ``root``: where `/proc` and `/sys` are (tests give a folder laid out like them)."""
+    try:
+        count = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        count = os.cpu_count() or 1
+    quota = cgroup_cpu_quota(root)
+    if quota is not None:
+        count = min(count, math.ceil(quota))
+    return max(1, count)
+
+
+def cgroup_cpu_quota(root: Path = Path("/")) -> float | None:
+    """The smallest CPU quota (in CPUs) of this process's cgroup and its ancestors, v1 or v2;
+    None where there is none, or no cgroup file system to read (not Linux)."""
+    try:
+        memberships = (root / "proc/self/cgroup").read_text(encoding="utf-8").splitlines()
+        mounts = (root / "proc/self/mountinfo").read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return None
+    quotas = []
+    for folder in _cgroup_folders(root, memberships, mounts):
+        quota = _quota_in(folder)
+        if quota is not None:
+            quotas.append(quota)
+    return min(quotas) if quotas else None
+
+
+def _cgroup_folders(root: Path, memberships: list[str], mounts: list[str]) -> list[Path]:
+    """The folders of this process's CPU cgroups and of their ancestors up to each mount point."""
+    v2_path, v1_path = None, None
+    for line in memberships:  # "0::/path" (v2) or "4:cpu,cpuacct:/path" (v1)
+        number, _, rest = line.partition(":")
+        controllers, _, path = rest.partition(":")
+        if number == "0" and not controllers:
+            v2_path = path
+        elif "cpu" in controllers.split(","):
+            v1_path = path
+    folders = []
+    for line in mounts:
+        # "36 35 98:0 ROOT MOUNT_POINT OPTIONS [optional...] - FSTYPE SOURCE SUPER_OPTIONS"
+        before, _, after = line.partition(" - ")
+        fields, tail = before.split(), after.split()
+        if len(fields) < 5 or len(tail) < 3:
+            continue
+        mount_root, mount_point, fstype = fields[3], fields[4], tail[0]
+        if fstype == "cgroup2" and v2_path is not None:
+            path = v2_path
+        elif fstype == "cgroup" and v1_path is not None and "cpu" in tail[2].split(","):
+            path = v1_path
+        else:
+            continue
+        # In a container the mount's root is the container's own cgroup ("/" with a cgroup
+        # namespace, "/docker/<id>" without): the membership path is relative to it.
+        if mount_root != "/" and (path == mount_root or path.startswith(mount_root + "/")):
+            path = path[len(mount_root) :]
+        base = root / mount_point.lstrip("/")
+        folder = base / path.lstrip("/")
+        while True:
+            folders.append(folder)
+            if folder == base or base not in folder.parents:
+                break
+            folder = folder.parent
+    return folders
+
+
+def _quota_in(folder: Path) -> float | None:
+    try:
+        text = (folder / "cpu.max").read_text(encoding="utf-8").split()  # "max 100000" or "150000 100000"
+        if len(text) == 2 and text[0] != "max":
+            return _ratio(text[0], text[1])
+    except OSError:
+        pass
+    try:
+        quota = (folder / "cpu.cfs_quota_us").read_text(encoding="utf-8").strip()  # -1: no quota
+        period = (folder / "cpu.cfs_period_us").read_text(encoding="utf-8").strip()
+    except OSError:
+        return None
+    return _ratio(quota, period)
+
+
+def _ratio(quota: str, period: str) -> float | None:
+    try:
+        value, length = int(quota), int(period)
+    except ValueError:
+        return None
+    if value <= 0 or length <= 0:
+        return None
+    return value / length
