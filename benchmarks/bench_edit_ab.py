@@ -100,6 +100,8 @@ def main() -> None:
 def _compare(root: Path, versions: dict[str, Path], args: argparse.Namespace) -> None:
     if args.library is not None:
         library = sorted(args.library.glob("*.bvh"))
+        if not library:
+            raise SystemExit(f"--library {args.library}: no .bvh files in that folder (give the clips' folder)")
     else:
         library = write_library(root / "library", args.clips, 7.0)
     environment = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "BLENDSPACE_NO_SERVER")}

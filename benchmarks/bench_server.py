@@ -1,6 +1,6 @@
 """Commands as a user types them (a new process each), with and without the build server.
 
-    python benchmarks/bench_server.py [--clips 1000] [--seconds 7] [--jobs 1] [--edits 3]
+    python benchmarks/bench_server.py [--clips 1000] [--seconds 7] [--jobs auto|N] [--edits 3]
 
 A library of procedural 7 s walks at 120 fps (`bench_rebuild.write_library`, 0.46 MB of BVH each)
 is built once without the server. Then, each as `python -m blendspace_pipeline build` in a new
@@ -70,7 +70,7 @@ def main() -> None:
     )
     parser.add_argument("--clips", type=int, default=1000)
     parser.add_argument("--seconds", type=float, default=7.0)
-    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--jobs", default="auto", help="passed to every command (default: auto, its default)")
     parser.add_argument("--edits", type=int, default=3)
     args = parser.parse_args()
     compile_package()  # bytecode, as an installed tool has it (see installed.py)

@@ -43,12 +43,12 @@ ROWS: dict[str, tuple[str, list[str], list[str]]] = {
         ["bench_rebuild.py", "--clips", "100"],
     ),
     "server": (
-        "1,000 clips, one clip edited, new process: without and with the build server",
-        ["bench_server.py", "--clips", "1000"],
-        ["bench_server.py", "--clips", "100", "--edits", "1"],
+        "1,000 clips, one clip edited, new process: without and with the build server, --jobs 1",
+        ["bench_server.py", "--clips", "1000", "--jobs", "1"],
+        ["bench_server.py", "--clips", "100", "--edits", "1", "--jobs", "1"],
     ),
     "server-jobs2": (
-        "the same with --jobs 2 (writers in parallel)",
+        "the same with --jobs 2 (writers in parallel; what --jobs auto gives on 2 CPUs)",
         ["bench_server.py", "--clips", "1000", "--jobs", "2"],
         ["bench_server.py", "--clips", "100", "--edits", "1", "--jobs", "2"],
     ),
