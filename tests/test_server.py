@@ -347,3 +347,61 @@ def test_a_served_command_s_client_imports_only_the_client(server: dict[str, str
     )
     assert "LOADED [] CODE" in done.stdout, done.stdout + done.stderr
     assert _status(server)["served"] == 1  # type: ignore[index]
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
+    reason="needs two CPUs to restrict a caller to one",
+)
+def test_a_served_command_runs_on_the_caller_s_cpus_and_niceness(
+    server: dict[str, str], tmp_path: Path
+) -> None:
+    """`taskset -c N nice -n 5 blendspace build`: the served command runs on CPU N at niceness 5
+    (and `--jobs auto` counts one CPU), as the command would in the caller's own process."""
+    manifest = _project(tmp_path)
+    plugins, seen = tmp_path / "plugins", tmp_path / "seen.json"
+    plugins.mkdir()
+    (plugins / "where_rule.py").write_text(
+        textwrap.dedent(
+            f"""
+            import json, os, pathlib
+            from blendspace_pipeline.api import Rule
+            from blendspace_pipeline.cpus import auto_jobs
+
+            class WhereRule(Rule):
+                slug = "studio-where"
+                code = "ST901"
+                severity = "info"
+                summary = "says where it runs"
+
+                def check(self, space):
+                    where = {{"pid": os.getpid(), "cpus": sorted(os.sched_getaffinity(0)),
+                              "nice": os.nice(0), "jobs": auto_jobs()}}
+                    pathlib.Path({str(seen)!r}).write_text(json.dumps(where))
+                    return []
+            """
+        ),
+        encoding="utf-8",
+    )
+    cpu = max(os.sched_getaffinity(0))
+
+    def as_taskset_and_nice() -> None:
+        os.sched_setaffinity(0, {cpu})
+        os.nice(5)
+
+    env = {**server, "BLENDSPACE_RULE_PATH": str(plugins)}
+    env.pop("BLENDSPACE_JOBS", None)
+    done = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=as_taskset_and_nice,
+        check=False,
+    )
+    assert done.returncode in (0, 1), done.stderr
+    assert _status(server)["served"] == 1  # type: ignore[index]
+    where = json.loads(seen.read_text(encoding="utf-8"))
+    assert where["cpus"] == [cpu] and where["jobs"] == 1
+    assert where["nice"] == os.nice(0) + 5

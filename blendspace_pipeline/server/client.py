@@ -128,6 +128,8 @@ def forward(argv: list[str]) -> int | None:
             "cwd": cwd,
             "env": dict(os.environ),
             "umask": _umask(),
+            "cpus": _cpus(),
+            "nice": os.nice(0) if hasattr(os, "nice") else None,
             "streams": streams,
             "fingerprint": fingerprint(),
         }
@@ -166,6 +168,15 @@ def _wait(sock: socket.socket, lines: _Lines) -> int:
             )
             return EXIT_INTERNAL
         return int(done["exit"])
+
+
+def _cpus() -> list[int] | None:
+    """The CPUs this process may run on (`taskset`, a cpuset): the served command runs on them,
+    and its `--jobs auto` counts them, as it would here."""
+    try:
+        return sorted(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return None
 
 
 def _umask() -> int:

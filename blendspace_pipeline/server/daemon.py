@@ -245,6 +245,7 @@ def _run_command(
         if hasattr(time, "tzset"):
             time.tzset()
         os.umask(int(request["umask"]))
+        _take_scheduling(request)
         sys.argv = ["blendspace", *request["argv"]]
         conn.settimeout(None)
         finished = threading.Event()
@@ -264,6 +265,19 @@ def _run_command(
         finally:
             os._exit(3)
     os._exit(code)
+
+
+def _take_scheduling(request: dict[str, Any]) -> None:
+    """The caller's CPUs (`taskset`, a cpuset: `--jobs auto` counts them) and niceness (`nice`
+    on a farm). Where the server may not take them (CPUs outside its own cpuset, a priority above
+    its own), the command runs with the server's, as it would have without asking."""
+    cpus, nice = request.get("cpus"), request.get("nice")
+    if cpus and hasattr(os, "sched_setaffinity"):
+        with contextlib.suppress(OSError, ValueError):
+            os.sched_setaffinity(0, cpus)
+    if isinstance(nice, int) and hasattr(os, "nice"):
+        with contextlib.suppress(OSError):
+            os.nice(nice - os.nice(0))
 
 
 def _take_streams(streams: list[dict[str, str | None]], fds: list[int]) -> None:
