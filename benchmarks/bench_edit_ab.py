@@ -101,7 +101,9 @@ def _compare(root: Path, versions: dict[str, Path], args: argparse.Namespace) ->
     if args.library is not None:
         library = sorted(args.library.glob("*.bvh"))
         if not library:
-            raise SystemExit(f"--library {args.library}: no .bvh files in that folder (give the clips' folder)")
+            raise SystemExit(
+                f"--library {args.library}: no .bvh files in that folder (give the clips' folder)"
+            )
     else:
         library = write_library(root / "library", args.clips, 7.0)
     environment = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "BLENDSPACE_NO_SERVER")}

@@ -585,6 +585,27 @@ def test_hostile_input_exits_2_with_location_hint_and_writes_nothing(
     assert len(err.splitlines()) < 40  # a message, not a dump of library errors
 
 
+WORKER_CASES = sorted(name for name in CASES if name.split("-")[0] in ("bvh", "gltf", "glb", "usd"))
+
+
+@pytest.mark.parametrize("name", WORKER_CASES)
+def test_a_hostile_clip_read_by_a_worker_exits_2_with_its_location(
+    name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same clip files measured by `--jobs 2` workers (the default on a multi-core Linux
+    machine): the error crosses a process boundary and must arrive as it does in one process."""
+    root = _project(tmp_path)
+    manifest, where = ALL[name](root)
+    before = _snapshot(tmp_path)
+    code = main(["check", str(manifest), "--jobs", "2"])
+    out, err = capsys.readouterr()
+    assert code == 2, f"exit {code}\n{out}\n{err}"
+    assert "Traceback" not in out + err and "internal error" not in err
+    assert where in (err.splitlines()[0] if err else ""), err
+    assert "hint:" in err, err
+    assert _snapshot(tmp_path) == before
+
+
 def test_the_corpus_is_large() -> None:
     # Kept honest: the issue's 132 hand-made inputs, each tried with check and build.
     assert len(ALL) >= 130, len(ALL)

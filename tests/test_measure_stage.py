@@ -172,6 +172,83 @@ def test_workers_inherit_the_readers_of_their_formats(tmp_path: Path) -> None:
     assert seen.read_text(encoding="utf-8").split() == ["True"] * len(SPECS)
 
 
+def test_a_worker_killed_mid_measure_is_one_line_that_says_what_to_do(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The out-of-memory killer ending a worker: exit 3 with a line naming the cause and `--jobs 1`
+    (not `BrokenProcessPool`), no traceback, nothing written."""
+    if not hasattr(os, "fork"):
+        pytest.skip("forked workers inherit the patch")
+    import signal
+
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    manifest = _project(tmp_path / "p")
+    original = measure_stage._measure_keyed
+
+    def dies_on_walk(job: measure_stage.Job) -> tuple[str, str, list[tuple[str, object]]]:
+        if job.path.stem == "walk" and os.getpid() != parent:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return original(job)  # type: ignore[return-value]
+
+    parent = os.getpid()
+    monkeypatch.setattr(measure_stage, "_measure_keyed", dies_on_walk)
+    with pytest.raises(measure_stage.WorkerLost, match="--jobs 1"):
+        _measured(manifest, jobs=2)
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--jobs", "2"]) == 3
+    err = capsys.readouterr().err
+    assert "a measuring process ended abruptly" in err and "--jobs 1" in err
+    assert "Traceback" not in err and len(err.splitlines()) == 1
+    assert not out.exists()
+    assert _summary(_measured(manifest, jobs=1)) != []  # in this process the patch does not kill
+
+
+def test_a_clip_error_from_a_worker_pickles_with_tblib_installed(tmp_path: Path) -> None:
+    """`import distributed` (a farm script using Dask) installs tblib's exception reducers, which
+    pickle an error's whole chain: an unreadable USD clip's error, raised from usd-core's
+    `Tf.ErrorException`, then failed to come back from a worker (exit 3, `Pickling of
+    "pxr.Tf.Error"`). It must be the clip's own error with its location, as in one process."""
+    pytest.importorskip("tblib")
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for spec in SPECS:
+        write_usd_clip(generate(spec), clips / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y")
+    (clips / "walk.usda").write_bytes(b"")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: gait\nclips:\n  - path: clips/*.usda\n", encoding="utf-8")
+    code = (
+        "import sys\n"
+        "import blendspace_pipeline.errors\n"
+        "from tblib import pickling_support\n"
+        "pickling_support.install()\n"  # after our error classes exist, as in a long-lived process
+        "from blendspace_pipeline.cli import main\n"
+        f"sys.exit(main(['check', {str(manifest)!r}, '--jobs', sys.argv[1]]))\n"
+    )
+    env = {**os.environ, "BLENDSPACE_CACHE_DIR": "off"}
+    for jobs in ("1", "2"):
+        done = subprocess.run(
+            [sys.executable, "-c", code, jobs], env=env, capture_output=True, text=True, timeout=120
+        )
+        assert done.returncode == 2, (jobs, done.stderr)
+        assert f"{clips / 'walk.usda'}" in done.stderr and "not a readable USD file" in done.stderr, (
+            done.stderr
+        )
+        assert "internal error" not in done.stderr and "Traceback" not in done.stderr
+
+
+def test_an_error_that_does_not_pickle_still_reaches_the_parent() -> None:
+    class Odd(measure_stage.InputError):
+        pass
+
+    error = Odd("bad take", path=Path("a.bvh"), line=3, column=None, hint="re-export it")
+    error.handle = lambda: None  # type: ignore[attr-defined]  # a lambda does not pickle
+    sent = measure_stage._sendable(error)
+    assert type(sent) is measure_stage.InputError
+    assert (sent.message, sent.path, sent.line, sent.hint) == ("bad take", Path("a.bvh"), 3, "re-export it")
+
+
 def test_builds_read_the_library_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("fsspec")
     from blendspace_pipeline.pipeline.library import measure_into_store

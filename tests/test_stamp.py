@@ -34,9 +34,10 @@ def _project(folder: Path) -> Path:
 
 
 class Counter:
-    """Counts real measurements (cache misses) and analyses while a test runs."""
+    """Counts real measurements (cache misses) and analyses while a test runs, in this process."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch.setenv("BLENDSPACE_JOBS", "1")  # counted here: no measuring workers
         self.measured: list[str] = []
         self.analyses = 0
         measure, analyse = measure_stage.measure, analysis.analyse

@@ -5,10 +5,12 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import os
+import pickle
 import sys
 import threading
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
 from pathlib import Path
 from typing import NamedTuple
@@ -100,7 +102,26 @@ def _measure_job(job: Job) -> Keyed:
     try:
         return _measure_keyed(job)
     except InputError as error:
-        return error
+        return _sendable(error)
+
+
+def _sendable(error: InputError) -> InputError:
+    """``error`` as a value that pickles back to the parent whatever this process has installed.
+
+    Its chain goes: the library exception it was raised from (usd-core's `Tf.ErrorException`
+    holds `Tf.Error`s, which do not pickle) would be pickled too once tblib's reducers are
+    installed, which `import distributed` does (a farm script using Dask, this project's `index`),
+    and the worker's whole answer would fail as an internal error. The message, location and hint
+    are what the parent reports."""
+    error.__cause__ = error.__context__ = None
+    error.__traceback__ = None
+    try:
+        pickle.dumps(error)
+    except Exception:  # a studio reader's error with an odd field: its text still gets through
+        return InputError(
+            error.message, path=error.path, line=error.line, column=error.column, hint=error.hint
+        )
+    return error
 
 
 def library_store(explicit: str | None = None) -> str | None:
@@ -219,6 +240,12 @@ def _run(jobs: int, job_list: list[Job]) -> Iterator[Keyed]:
             warming = _warm_imports()
             try:
                 yield from results
+            except BrokenProcessPool as error:
+                raise WorkerLost(
+                    "a measuring process ended abruptly (killed by the system: most often for want "
+                    f"of memory with {jobs} processes measuring long takes at once); run again with "
+                    "--jobs 1 to measure in the command's own process, or with fewer --jobs"
+                ) from error
             finally:
                 if warming is not None:
                     warming.join()
@@ -237,6 +264,11 @@ def _import_readers(job_list: list[Job]) -> None:
             adapter_for(Path(f"clip{suffix}"))
         except (ClipReadError, ImportError):
             continue  # the worker meets the same error and reports it against the clip
+
+
+class WorkerLost(RuntimeError):
+    """A worker died without an answer (SIGKILL from the out-of-memory killer, a crash in a
+    native library): an internal error (exit 3) whose one line says what to do."""
 
 
 def _warm_imports() -> threading.Thread | None:
