@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -74,7 +75,7 @@ def _cgroup_folders(root: Path, memberships: list[str], mounts: list[str]) -> li
         fields, tail = before.split(), after.split()
         if len(fields) < 5 or len(tail) < 3:
             continue
-        mount_root, mount_point, fstype = fields[3], fields[4], tail[0]
+        mount_root, mount_point, fstype = _unescaped(fields[3]), _unescaped(fields[4]), tail[0]
         if fstype == "cgroup2" and v2_path is not None:
             path = v2_path
         elif fstype == "cgroup" and v1_path is not None and "cpu" in tail[2].split(","):
@@ -82,8 +83,11 @@ def _cgroup_folders(root: Path, memberships: list[str], mounts: list[str]) -> li
         else:
             continue
         # In a container the mount's root is the container's own cgroup ("/" with a cgroup
-        # namespace, "/docker/<id>" without): the membership path is relative to it.
-        if mount_root != "/" and (path == mount_root or path.startswith(mount_root + "/")):
+        # namespace, "/docker/<id>" without): the membership path is relative to it. A mount of
+        # another part of the tree does not hold this process's cgroup.
+        if mount_root != "/":
+            if path != mount_root and not path.startswith(mount_root + "/"):
+                continue
             path = path[len(mount_root) :]
         base = root / mount_point.lstrip("/")
         folder = base / path.lstrip("/")
@@ -93,6 +97,11 @@ def _cgroup_folders(root: Path, memberships: list[str], mounts: list[str]) -> li
                 break
             folder = folder.parent
     return folders
+
+
+def _unescaped(field: str) -> str:
+    """A mountinfo path field: the kernel writes space, tab, newline and backslash as octal escapes."""
+    return re.sub(r"\\([0-7]{3})", lambda found: chr(int(found.group(1), 8)), field)
 
 
 def _quota_in(folder: Path) -> float | None:

@@ -311,3 +311,33 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
     assert _skate(tmp_path / "project" / "jobs1") == _skate(tmp_path / "project" / "jobs2")
     skate = [v for row in _skate(tmp_path / "project" / "jobs2")["foot_skate"] for v in row]  # type: ignore[index]
     assert any(v is not None for v in skate)
+
+
+def test_a_foot_skate_worker_killed_is_one_line_that_says_what_to_do(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The out-of-memory killer ending a foot-skate worker: exit 3, one line naming the work and
+    `--jobs 1` (not `BrokenProcessPool`), nothing written."""
+    if "fork" not in __import__("multiprocessing").get_all_start_methods():
+        pytest.skip("workers are forked; this platform plays every blend in process")
+    import signal
+
+    manifest = _project(tmp_path / "project")
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
+    monkeypatch.setattr(outputs, "EarlyQuality", lambda *args: None)  # the pool in this process
+    parent = os.getpid()
+    real = blend_quality._play_point
+
+    def dies(*args):  # type: ignore[no-untyped-def]  # what a worker's chunk calls per point
+        if os.getpid() != parent:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real(*args)
+
+    monkeypatch.setattr(blend_quality, "_play_point", dies)
+    out = tmp_path / "project" / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix", "--jobs", "2"]) == 3
+    err = capsys.readouterr().err
+    assert "a foot-skate process ended without an answer" in err and "--jobs 1" in err, err
+    assert "Traceback" not in err and len(err.splitlines()) == 1
+    assert not out.exists()

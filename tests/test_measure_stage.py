@@ -19,7 +19,7 @@ from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.motion.detect import DetectionGuess, RigSettings
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
-from blendspace_pipeline.pipeline import cache, measure_stage
+from blendspace_pipeline.pipeline import cache, forked, measure_stage
 from blendspace_pipeline.pipeline.measure_stage import measure_files
 from blendspace_pipeline.space.model import MeasuredClip
 from blendspace_pipeline.writers.bvh import write_bvh_clip
@@ -192,12 +192,12 @@ def test_a_worker_killed_mid_measure_is_one_line_that_says_what_to_do(
 
     parent = os.getpid()
     monkeypatch.setattr(measure_stage, "_measure_keyed", dies_on_walk)
-    with pytest.raises(measure_stage.WorkerLost, match="--jobs 1"):
+    with pytest.raises(forked.WorkerLost, match="--jobs 1"):
         _measured(manifest, jobs=2)
     out = tmp_path / "out"
     assert main(["build", str(manifest), "--out", str(out), "--jobs", "2"]) == 3
     err = capsys.readouterr().err
-    assert "a measuring process ended abruptly" in err and "--jobs 1" in err
+    assert "a measuring process ended without an answer" in err and "--jobs 1" in err
     assert "Traceback" not in err and len(err.splitlines()) == 1
     assert not out.exists()
     assert _summary(_measured(manifest, jobs=1)) != []  # in this process the patch does not kill
@@ -247,6 +247,23 @@ def test_an_error_that_does_not_pickle_still_reaches_the_parent() -> None:
     sent = measure_stage._sendable(error)
     assert type(sent) is measure_stage.InputError
     assert (sent.message, sent.path, sent.line, sent.hint) == ("bad take", Path("a.bvh"), 3, "re-export it")
+
+
+class TakeError(measure_stage.InputError):
+    """A studio reader's error with an __init__ of its own: it pickles, and fails to load."""
+
+    def __init__(self, path: Path, take: str) -> None:
+        super().__init__(f"take {take} is empty", path=path, hint="re-export the take")
+
+
+def test_an_error_that_pickles_but_does_not_load_still_reaches_the_parent() -> None:
+    import pickle
+
+    error = TakeError(Path("t.bvh"), "walk")
+    with pytest.raises(TypeError):
+        pickle.loads(pickle.dumps(error))
+    sent = measure_stage._sendable(error)
+    assert pickle.loads(pickle.dumps(sent)).render() == error.render()
 
 
 def test_builds_read_the_library_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -45,6 +45,7 @@ from blendspace_pipeline.motion.measure import trim
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.cache import write_atomic
+from blendspace_pipeline.pipeline.forked import explained_worker_loss
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
@@ -287,7 +288,8 @@ def _play_all(
             results = pool.map(_play_chunk, chunks)  # submitted: the workers start now
             if meanwhile is not None:
                 meanwhile()
-            played = [value for chunk in results for value in chunk]
+            with explained_worker_loss("foot-skate"):
+                played = [value for chunk in results for value in chunk]
     finally:
         _FORKED = None
     values: list[float | None] = [None] * len(points)

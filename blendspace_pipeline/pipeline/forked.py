@@ -29,7 +29,8 @@ import selectors
 import signal
 import sys
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 Task = Callable[[], Any]
@@ -38,6 +39,26 @@ _VALUE = b"\x00"  # a result payload that is a returned value (a pickled error s
 
 def can_fork() -> bool:
     return hasattr(os, "fork") and sys.platform != "win32"
+
+
+class WorkerLost(RuntimeError):
+    """A pool's worker ended without an answer (the out-of-memory killer, a crash in a native
+    library): an internal error (exit 3) whose one line says what to do instead of
+    `BrokenProcessPool`."""
+
+
+@contextlib.contextmanager
+def explained_worker_loss(work: str) -> Iterator[None]:
+    """Around a `ProcessPoolExecutor`'s results: its `BrokenProcessPool` as a `WorkerLost` that
+    names the ``work`` ("measuring", "foot-skate") and the way out."""
+    try:
+        yield
+    except BrokenProcessPool as error:
+        raise WorkerLost(
+            f"a {work} process ended without an answer (killed, for example by the system when "
+            "memory runs out, or crashed); run again with fewer --jobs, or --jobs 1 to do the "
+            "work in the command's own process"
+        ) from error
 
 
 def run_tasks(tasks: Sequence[Task], jobs: int, start_order: Sequence[int] | None = None) -> None:

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import multiprocessing
 import os
 import pickle
 import sys
 import threading
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
 from pathlib import Path
 from typing import NamedTuple
@@ -23,6 +23,7 @@ from blendspace_pipeline.memory import keep_freed_memory
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import Measurement, TimeRange, measure
 from blendspace_pipeline.pipeline import cache
+from blendspace_pipeline.pipeline.forked import explained_worker_loss
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import adapter_for, read_clips
 from blendspace_pipeline.readers.limits import check_regular
@@ -116,7 +117,7 @@ def _sendable(error: InputError) -> InputError:
     error.__cause__ = error.__context__ = None
     error.__traceback__ = None
     try:
-        pickle.dumps(error)
+        pickle.loads(pickle.dumps(error))  # both ways: a subclass with its own __init__ may not load
     except Exception:  # a studio reader's error with an odd field: its text still gets through
         return InputError(
             error.message, path=error.path, line=error.line, column=error.column, hint=error.hint
@@ -234,18 +235,14 @@ def _run(jobs: int, job_list: list[Job]) -> Iterator[Keyed]:
         _import_readers(job_list)
         # Chunks keep the per-task overhead small; workers return digests and measurements only.
         chunk = max(1, min(16, len(job_list) // (4 * jobs)))
-        with ProcessPoolExecutor(max_workers=min(jobs, len(job_list)), initializer=keep_freed_memory) as pool:
+        workers = min(jobs, len(job_list))
+        with ProcessPoolExecutor(workers, _pool_context(), initializer=keep_freed_memory) as pool:
             results = pool.map(_measure_job, job_list, chunksize=chunk)  # the workers are forked now
             # Joined before the pool closes: nothing forks later while the thread may hold an import lock.
             warming = _warm_imports()
             try:
-                yield from results
-            except BrokenProcessPool as error:
-                raise WorkerLost(
-                    "a measuring process ended abruptly (killed by the system: most often for want "
-                    f"of memory with {jobs} processes measuring long takes at once); run again with "
-                    "--jobs 1 to measure in the command's own process, or with fewer --jobs"
-                ) from error
+                with explained_worker_loss("measuring"):
+                    yield from results
             finally:
                 if warming is not None:
                     warming.join()
@@ -266,9 +263,13 @@ def _import_readers(job_list: list[Job]) -> None:
             continue  # the worker meets the same error and reports it against the clip
 
 
-class WorkerLost(RuntimeError):
-    """A worker died without an answer (SIGKILL from the out-of-memory killer, a crash in a
-    native library): an internal error (exit 3) whose one line says what to do."""
+def _pool_context() -> multiprocessing.context.BaseContext | None:
+    """Forked workers on Linux, whatever Python's default (3.14 starts them from a fork server,
+    which would not inherit the readers imported here); elsewhere Python's default (spawn on
+    macOS and Windows, where `--jobs auto` is 1)."""
+    if sys.platform.startswith("linux"):
+        return multiprocessing.get_context("fork")
+    return None
 
 
 def _warm_imports() -> threading.Thread | None:
