@@ -3,11 +3,14 @@ the same, byte for byte, as a cold build of the edited set."""
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
 import subprocess
 import sys
+import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -265,6 +268,58 @@ def test_rule_runs_share_sample_views_of_the_same_clips_only(
     assert shared.placeholders == fresh.placeholders
 
 
+def _slowly(play: Callable[..., float | None], *args: object) -> float | None:
+    time.sleep(0.04)
+    return play(*args)
+
+
+def _every_point_to_workers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A pool however little there is to play (a test space's map takes a fraction of a second)."""
+    monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
+    monkeypatch.setattr(blend_quality, "SERIAL_FIRST_SECONDS", 0.0)
+    monkeypatch.setattr(blend_quality, "POOL_WORTH_SECONDS", 0.0)
+
+
+def _pools(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    pools: list[int] = []
+    pool = blend_quality.ProcessPoolExecutor
+
+    def counted_pool(*args, **kwargs):  # type: ignore[no-untyped-def]
+        pools.append(1)
+        return pool(*args, **kwargs)
+
+    monkeypatch.setattr(blend_quality, "ProcessPoolExecutor", counted_pool)
+    return pools
+
+
+def test_a_map_quicker_to_play_than_a_pool_is_played_in_process_and_a_slow_one_is_not(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`--jobs 2`: the first blends are played here; the rest go to workers only when, at that
+    pace, they would take `POOL_WORTH_SECONDS`. Either way the map is the one played here."""
+    if "fork" not in __import__("multiprocessing").get_all_start_methods():
+        pytest.skip("workers are forked; this platform plays every blend in process")
+    manifest = _project(tmp_path / "project")
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
+    monkeypatch.setattr(outputs, "EarlyQuality", lambda *args: None)  # the maps in this process
+    pools = _pools(monkeypatch)
+    maps = {}
+    for name in ("one", "quick", "slow"):
+        if name == "slow":  # 40 ms a blend: a few played here, the rest worth a pool
+            monkeypatch.setattr(
+                blend_quality, "_play_point", functools.partial(_slowly, blend_quality._play_point)
+            )
+        out = tmp_path / "project" / name
+        jobs = "1" if name == "one" else "2"
+        assert main(["build", str(manifest), "--out", str(out), "--no-fix", "--jobs", jobs]) in (0, 1)
+        maps[name] = _skate(out)
+        if name == "quick":
+            assert pools == []  # the test space's map plays in well under POOL_WORTH_SECONDS
+    assert pools == [1]
+    assert maps["one"] == maps["quick"] == maps["slow"]
+
+
 def test_foot_skate_played_in_worker_processes_equals_one_process(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -273,7 +328,7 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
         pytest.skip("workers are forked; this platform plays every blend in process")
     manifest = _project(tmp_path / "project")
     monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
-    monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
+    _every_point_to_workers(monkeypatch)
     calls: list[int] = []
     beside: list[bool] = []  # whether this process wrote outputs while the workers played
     real = blend_quality._play_all
@@ -291,14 +346,7 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
         return result
 
     monkeypatch.setattr(blend_quality, "_play_all", recorded)
-    pools: list[int] = []
-    pool = blend_quality.ProcessPoolExecutor
-
-    def counted_pool(*args, **kwargs):  # type: ignore[no-untyped-def]
-        pools.append(1)
-        return pool(*args, **kwargs)
-
-    monkeypatch.setattr(blend_quality, "ProcessPoolExecutor", counted_pool)
+    pools = _pools(monkeypatch)
     # The maps in this process (as builds with fixes make them): without fixes they are made in an
     # early child instead (tests/test_early_quality.py).
     monkeypatch.setattr(outputs, "EarlyQuality", lambda *args: None)
@@ -324,7 +372,7 @@ def test_a_foot_skate_worker_killed_is_one_line_that_says_what_to_do(
 
     manifest = _project(tmp_path / "project")
     monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
-    monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
+    _every_point_to_workers(monkeypatch)
     monkeypatch.setattr(outputs, "EarlyQuality", lambda *args: None)  # the pool in this process
     parent = os.getpid()
     real = blend_quality._play_point

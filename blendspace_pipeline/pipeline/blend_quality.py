@@ -21,6 +21,7 @@ import hashlib
 import json
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -212,6 +213,14 @@ Point = tuple[int, int, list[int], list[float], list[float], str | None]
 _FORKED: tuple[PreparedSamples, RigSettings] | None = None
 # Below this many blends to play, starting worker processes costs more than it saves.
 PARALLEL_MIN_POINTS = 8
+# How long blends are played here before deciding on workers, and how much playing left (at the
+# pace of those first blends) makes them worth it. Forking two workers from a command with the
+# pipeline loaded and their own clip reads cost ~0.1 s (sample project, 2 vCPUs), so the rest
+# must take at least twice that here; the first blends' pace includes reading their clips, which
+# later blends mostly find read, and overstates the rest about twofold (test spaces: 17 ms a blend
+# at first, 4.5 ms on average).
+SERIAL_FIRST_SECONDS = 0.05
+POOL_WORTH_SECONDS = 0.5
 
 
 def foot_skate_grid(
@@ -270,17 +279,35 @@ def _play_all(
     jobs: int,
     meanwhile: Callable[[], None] | None = None,
 ) -> list[float | None]:
-    """Every point's foot skate, in ``jobs`` forked processes when there are enough points (a cold
+    """Every point's foot skate, in ``jobs`` forked processes when there is enough to play (a cold
     build: each point reads and prepares the clips of its triangle). Points of one triangle go to
     one worker, so a clip is read about once; the values are the same as played here.
     ``meanwhile`` runs in this process while the workers play (only then: the caller runs it
-    itself when it was not called)."""
+    itself when it was not called).
+
+    The first points are played here for `SERIAL_FIRST_SECONDS`: the rest goes to workers only
+    when, at that pace, it would take `POOL_WORTH_SECONDS` or more. A small space's map is done
+    before a pool would have started (the sample project: 25 blends, 0.1 s here and 0.2 s through
+    a pool), and a big one's workers inherit the clips read so far."""
     fork = "fork" in multiprocessing.get_all_start_methods()
     if jobs < 2 or len(points) < PARALLEL_MIN_POINTS or not fork:
         return [_play_point(prepared, p[2], p[3], p[4], settings) for p in points]
     order = sorted(range(len(points)), key=lambda i: sorted(points[i][2]))
-    size = -(-len(order) // jobs)
-    chunks = [[points[i][2:5] for i in order[start : start + size]] for start in range(0, len(order), size)]
+    values: list[float | None] = [None] * len(points)
+    start, done = time.perf_counter(), 0
+    while done < len(order) and time.perf_counter() - start < SERIAL_FIRST_SECONDS:
+        point = points[order[done]]
+        values[order[done]] = _play_point(prepared, point[2], point[3], point[4], settings)
+        done += 1
+    rest = order[done:]
+    pace = (time.perf_counter() - start) / max(done, 1)
+    if len(rest) < 2 or pace * len(rest) < POOL_WORTH_SECONDS:
+        for index in rest:
+            point = points[index]
+            values[index] = _play_point(prepared, point[2], point[3], point[4], settings)
+        return values
+    size = -(-len(rest) // jobs)
+    chunks = [[points[i][2:5] for i in rest[first : first + size]] for first in range(0, len(rest), size)]
     global _FORKED
     _FORKED = (prepared, settings)
     try:
@@ -292,8 +319,7 @@ def _play_all(
                 played = [value for chunk in results for value in chunk]
     finally:
         _FORKED = None
-    values: list[float | None] = [None] * len(points)
-    for index, value in zip(order, played, strict=True):
+    for index, value in zip(rest, played, strict=True):
         values[index] = value
     return values
 
