@@ -266,6 +266,29 @@ def test_an_error_that_pickles_but_does_not_load_still_reaches_the_parent() -> N
     assert pickle.loads(pickle.dumps(sent)).render() == error.render()
 
 
+def test_two_small_files_are_measured_here_and_more_or_bigger_ones_by_workers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A pool costs a fork per worker: at --jobs 2 two small files (a style layer's pair) are
+    measured in this process; a third file, or two files past `SMALL_BATCH_BYTES`, go to workers."""
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", "off")
+    pools: list[int] = []
+    real = measure_stage.ProcessPoolExecutor
+
+    def counted(*args: object, **kwargs: object) -> object:
+        pools.append(1)
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(measure_stage, "ProcessPoolExecutor", counted)
+    manifest = _project(tmp_path / "p")
+    assert len(_measured(manifest, jobs=2)) == 3 and pools == [1]
+    (tmp_path / "p" / "clips" / "idle.bvh").unlink()
+    pair = _summary(_measured(manifest, jobs=2))
+    assert len(pair) == 2 and pools == [1]  # measured here
+    monkeypatch.setattr(measure_stage, "SMALL_BATCH_BYTES", 1000)  # as if two long takes
+    assert _summary(_measured(manifest, jobs=2)) == pair and pools == [1, 1]
+
+
 def test_builds_read_the_library_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("fsspec")
     from blendspace_pipeline.pipeline.library import measure_into_store
