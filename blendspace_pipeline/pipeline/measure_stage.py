@@ -109,11 +109,11 @@ def _measure_job(job: Job) -> Keyed:
 def _sendable(error: InputError) -> InputError:
     """``error`` as a value that pickles back to the parent whatever this process has installed.
 
-    Its chain goes: the library exception it was raised from (usd-core's `Tf.ErrorException`
-    holds `Tf.Error`s, which do not pickle) would be pickled too once tblib's reducers are
-    installed, which `import distributed` does (a farm script using Dask, this project's `index`),
-    and the worker's whole answer would fail as an internal error. The message, location and hint
-    are what the parent reports."""
+    It goes without its chain: once tblib's reducers are installed (`import distributed` does:
+    a farm script using Dask, this project's `index`) the library exception it was raised from
+    is pickled too, and usd-core's `Tf.ErrorException` holds `Tf.Error`s, which do not pickle,
+    so the worker's whole answer failed as an internal error. The message, location and hint
+    are all the parent reports."""
     error.__cause__ = error.__context__ = None
     error.__traceback__ = None
     try:
