@@ -3,13 +3,11 @@ the same, byte for byte, as a cold build of the edited set."""
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -268,9 +266,19 @@ def test_rule_runs_share_sample_views_of_the_same_clips_only(
     assert shared.placeholders == fresh.placeholders
 
 
-def _slowly(play: Callable[..., float | None], *args: object) -> float | None:
-    time.sleep(0.04)
-    return play(*args)
+class _BlendClock:
+    """`blend_quality`'s clock, moved on by a set time per blend played in this process, so
+    the decision does not depend on how busy the machine is."""
+
+    def __init__(self, play: Callable[..., float | None]) -> None:
+        self.now, self.per_blend, self.play = 0.0, 0.0, play
+
+    def perf_counter(self) -> float:
+        return self.now
+
+    def played(self, *args: object) -> float | None:
+        self.now += self.per_blend
+        return self.play(*args)
 
 
 def _every_point_to_workers(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -304,18 +312,20 @@ def test_a_map_quicker_to_play_than_a_pool_is_played_in_process_and_a_slow_one_i
     monkeypatch.setattr(blend_quality, "PARALLEL_MIN_POINTS", 2)
     monkeypatch.setattr(outputs, "EarlyQuality", lambda *args: None)  # the maps in this process
     pools = _pools(monkeypatch)
+    clock = _BlendClock(blend_quality._play_point)
+    monkeypatch.setattr(blend_quality, "time", clock)
+    monkeypatch.setattr(blend_quality, "_play_point", clock.played)
     maps = {}
     for name in ("one", "quick", "slow"):
-        if name == "slow":  # 40 ms a blend: a few played here, the rest worth a pool
-            monkeypatch.setattr(
-                blend_quality, "_play_point", functools.partial(_slowly, blend_quality._play_point)
-            )
+        # 1 ms a blend: the test space's 29 are played here before the first 0.05 s are over;
+        # 40 ms: two are, and the rest would take about a second, worth a pool.
+        clock.per_blend = 0.04 if name == "slow" else 0.001
         out = tmp_path / "project" / name
         jobs = "1" if name == "one" else "2"
         assert main(["build", str(manifest), "--out", str(out), "--no-fix", "--jobs", jobs]) in (0, 1)
         maps[name] = _skate(out)
         if name == "quick":
-            assert pools == []  # the test space's map plays in well under POOL_WORTH_SECONDS
+            assert pools == []
     assert pools == [1]
     assert maps["one"] == maps["quick"] == maps["slow"]
 
