@@ -20,6 +20,20 @@ from pathlib import Path
 JOBS_VARIABLE = "BLENDSPACE_JOBS"
 
 
+def fork_safe_usd() -> None:
+    """Keep usd-core from starting its TBB worker threads in this command's process.
+
+    The command forks workers (measuring, foot-skate) and writers after it may have read or written
+    USD itself (a style layer's two clips, the prepared clips of the first blends, the USD writer).
+    TBB's pool does not survive a fork: a child that then reads USD waits forever on workers that
+    exist only in its parent (seen as a measuring worker hung in `futex_wait`). One USD thread
+    costs nothing here: a clip's stage is read serially anyway. Set before usd-core loads; a value
+    the user set is kept (and the banner usd-core prints for a changed setting is not shown). Only
+    the command line does this: the Python API never changes its host's USD (Maya, Houdini)."""
+    os.environ.setdefault("PXR_WORK_THREAD_LIMIT", "1")
+    os.environ.setdefault("TF_ENV_SETTING_ALERTS_ENABLED", "0")
+
+
 def auto_jobs() -> int:
     """`--jobs auto`: the usable CPUs on Linux, where workers are forked from the command with its
     modules loaded; 1 elsewhere, where each worker is a new Python that imports numpy, scipy and

@@ -8,6 +8,7 @@ from typing import NoReturn
 
 import pytest
 
+from blendspace_pipeline.cpus import fork_safe_usd
 from blendspace_pipeline.motion.procedural import GaitSpec
 
 REPO = Path(__file__).resolve().parents[1]
@@ -27,6 +28,10 @@ def _guarded_exit(code: int) -> NoReturn:
 
 
 os._exit = _guarded_exit
+
+# As the `blendspace` command does for its own process (cpus.fork_safe_usd), before any test loads
+# usd-core: tests call the command in this process, which then forks workers that read USD.
+fork_safe_usd()
 
 
 def shared_data(*parts: str) -> Path:

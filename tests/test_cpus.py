@@ -267,3 +267,57 @@ def test_a_default_build_writes_what_one_process_writes(tmp_path: Path) -> None:
     assert default == one and len(default) >= 4
     for name in default:
         assert (tmp_path / "default" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("given", [None, "2"])
+def test_a_command_reads_usd_without_tbb_threads_and_says_nothing_about_it(
+    given: str | None, tmp_path: Path
+) -> None:
+    """`blendspace` keeps usd-core to one thread in its own process (TBB's workers do not survive
+    the forks of `--jobs`), quietly, unless the user set PXR_WORK_THREAD_LIMIT."""
+    pytest.importorskip("pxr")
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for name, spec in list(tidy_set().items())[:3]:
+        write_usd_clip(
+            generate(replace(spec, name=name)), clips / f"{name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.usda\n", encoding="utf-8")
+    plugins, seen = tmp_path / "plugins", tmp_path / "seen.txt"
+    plugins.mkdir()
+    (plugins / "threads_rule.py").write_text(
+        "import pathlib\n"
+        "from pxr import Work\n"
+        "from blendspace_pipeline.api import Rule\n\n"
+        "class ThreadsRule(Rule):\n"
+        "    slug = 'studio-threads'\n"
+        "    code = 'ST902'\n"
+        "    severity = 'info'\n"
+        "    summary = 'says how many threads USD may use'\n\n"
+        "    def check(self, space):\n"
+        f"        pathlib.Path({str(seen)!r}).write_text(str(Work.GetConcurrencyLimit()))\n"
+        "        return []\n",
+        encoding="utf-8",
+    )
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("PXR_WORK_THREAD_LIMIT", "TF_ENV_SETTING_ALERTS_ENABLED")
+    }
+    env.update({"BLENDSPACE_RULE_PATH": str(plugins), "BLENDSPACE_CACHE_DIR": "off"})
+    if given is not None:
+        env["PXR_WORK_THREAD_LIMIT"] = given
+    done = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest), "--jobs", "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode in (0, 1), done.stderr
+    assert seen.read_text(encoding="utf-8") == (given or "1")
+    if given is None:
+        assert "PXR_WORK_THREAD_LIMIT" not in done.stderr and "overridden" not in done.stderr
