@@ -289,22 +289,25 @@ def _play_all(
     when, at that pace, it would take `POOL_WORTH_SECONDS` or more. A small space's map is done
     before a pool would have started (the sample project: 25 blends, 0.1 s here and 0.2 s through
     a pool), and a big one's workers inherit the clips read so far."""
+
+    def here(index: int) -> float | None:
+        point = points[index]
+        return _play_point(prepared, point[2], point[3], point[4], settings)
+
     fork = "fork" in multiprocessing.get_all_start_methods()
     if jobs < 2 or len(points) < PARALLEL_MIN_POINTS or not fork:
-        return [_play_point(prepared, p[2], p[3], p[4], settings) for p in points]
+        return [here(index) for index in range(len(points))]
     order = sorted(range(len(points)), key=lambda i: sorted(points[i][2]))
     values: list[float | None] = [None] * len(points)
     start, done = time.perf_counter(), 0
     while done < len(order) and time.perf_counter() - start < SERIAL_FIRST_SECONDS:
-        point = points[order[done]]
-        values[order[done]] = _play_point(prepared, point[2], point[3], point[4], settings)
+        values[order[done]] = here(order[done])
         done += 1
     rest = order[done:]
     pace = (time.perf_counter() - start) / max(done, 1)
     if len(rest) < 2 or pace * len(rest) < POOL_WORTH_SECONDS:
         for index in rest:
-            point = points[index]
-            values[index] = _play_point(prepared, point[2], point[3], point[4], settings)
+            values[index] = here(index)
         return values
     size = -(-len(rest) // jobs)
     chunks = [[points[i][2:5] for i in rest[first : first + size]] for first in range(0, len(rest), size)]
