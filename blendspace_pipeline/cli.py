@@ -153,12 +153,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if code is not None:
             return code
     if argv is None:  # a process of its own: measuring in it (--jobs 1) reuses its freed pages
-        from blendspace_pipeline.cpus import fork_safe_usd
+        from blendspace_pipeline.cpus import own_process
         from blendspace_pipeline.memory import collect_less, keep_freed_memory
 
+        own_process()
         keep_freed_memory()
         collect_less()
-        fork_safe_usd()
         _exit_now(run_here(words))
     return run_here(words)
 

@@ -34,6 +34,32 @@ def fork_safe_usd() -> None:
     os.environ.setdefault("TF_ENV_SETTING_ALERTS_ENABLED", "0")
 
 
+# What OpenBLAS (numpy's and scipy's) reads for its thread count, in the order it reads them.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+
+
+def one_blas_thread() -> None:
+    """Run numpy's and scipy's BLAS in the calling thread only, in this command's processes.
+
+    The command's parallelism is processes (`--jobs`); its matrices are small (a 3x3 fit, a
+    triangle's barycentrics), where BLAS's own threads never pay. They cost: each OpenBLAS (numpy
+    and scipy ship one each) starts a thread per further CPU when it loads, and after every call
+    those threads spin for a while before they sleep. On 2 CPUs a process that made one BLAS call
+    and then waited used 0.1 s of CPU in the next 0.5 s, taken from the measuring or foot-skate
+    workers beside it (perf on a cold 1,000-clip `--jobs 2` build: 1.2 % of all CPU in
+    `blas_thread_server`). Set before numpy loads; a thread count the user set (for OpenBLAS or
+    OpenMP) is kept. Only the command line does this, as with `fork_safe_usd`."""
+    if not any(name in os.environ for name in BLAS_THREAD_VARIABLES):
+        os.environ["OPENBLAS_NUM_THREADS"] = "1"
+
+
+def own_process() -> None:
+    """The thread settings of a process the command owns (the command line's, the build server's):
+    see `fork_safe_usd` and `one_blas_thread`. Before usd-core and numpy load."""
+    fork_safe_usd()
+    one_blas_thread()
+
+
 def auto_jobs() -> int:
     """`--jobs auto`: the usable CPUs on Linux, where workers are forked from the command with its
     modules loaded; 1 elsewhere, where each worker is a new Python that imports numpy, scipy and

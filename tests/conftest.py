@@ -8,8 +8,13 @@ from typing import NoReturn
 
 import pytest
 
-from blendspace_pipeline.cpus import fork_safe_usd
-from blendspace_pipeline.motion.procedural import GaitSpec
+from blendspace_pipeline.cpus import own_process
+
+# As the `blendspace` command does for its own process, before any test loads usd-core or numpy:
+# tests call the command in this process, which then forks workers that read USD and use BLAS.
+own_process()
+
+from blendspace_pipeline.motion.procedural import GaitSpec  # noqa: E402 - after own_process
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
@@ -28,10 +33,6 @@ def _guarded_exit(code: int) -> NoReturn:
 
 
 os._exit = _guarded_exit
-
-# As the `blendspace` command does for its own process (cpus.fork_safe_usd), before any test loads
-# usd-core: tests call the command in this process, which then forks workers that read USD.
-fork_safe_usd()
 
 
 def shared_data(*parts: str) -> Path:

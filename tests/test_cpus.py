@@ -6,6 +6,7 @@ formats the kernel writes (cgroup v1, v2, hybrid, and a container's namespaced v
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -321,3 +322,55 @@ def test_a_command_reads_usd_without_tbb_threads_and_says_nothing_about_it(
     assert seen.read_text(encoding="utf-8") == (given or "1")
     if given is None:
         assert "PXR_WORK_THREAD_LIMIT" not in done.stderr and "overridden" not in done.stderr
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts threads in /proc")
+@pytest.mark.parametrize("given", [None, {"OMP_NUM_THREADS": "2"}])
+def test_a_command_runs_blas_in_its_own_thread(given: dict[str, str] | None, tmp_path: Path) -> None:
+    """`blendspace` runs numpy's and scipy's BLAS without threads of their own in its process (they
+    spin after every call, on the CPUs the --jobs workers use), unless the user set a count."""
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for name, spec in list(tidy_set().items())[:3]:
+        write_bvh_clip(generate(replace(spec, name=name)), clips / f"{name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    plugins, seen = tmp_path / "plugins", tmp_path / "seen.json"
+    plugins.mkdir()
+    (plugins / "blas_rule.py").write_text(
+        "import json, os, pathlib, threading\n"
+        "import numpy, scipy.linalg\n"
+        "from blendspace_pipeline.api import Rule\n\n"
+        "class BlasRule(Rule):\n"
+        "    slug = 'studio-blas'\n"
+        "    code = 'ST903'\n"
+        "    severity = 'info'\n"
+        "    summary = 'counts the threads BLAS adds'\n\n"
+        "    def check(self, space):\n"
+        "        matrix = numpy.random.default_rng(0).random((200, 200))\n"
+        "        scipy.linalg.lu_factor(matrix @ matrix)\n"
+        "        native = len(os.listdir('/proc/self/task')) - threading.active_count()\n"
+        "        names = ('OPENBLAS_NUM_THREADS', 'GOTO_NUM_THREADS', 'OMP_NUM_THREADS')\n"
+        f"        pathlib.Path({str(seen)!r}).write_text(json.dumps(\n"
+        "            {'native': native, 'env': {n: os.environ[n] for n in names if n in os.environ}}))\n"
+        "        return []\n",
+        encoding="utf-8",
+    )
+    names = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    env = {k: v for k, v in os.environ.items() if k not in names}
+    env.update({"BLENDSPACE_RULE_PATH": str(plugins), "BLENDSPACE_CACHE_DIR": "off", **(given or {})})
+    done = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest), "--jobs", "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode in (0, 1), done.stderr
+    found = json.loads(seen.read_text(encoding="utf-8"))
+    if given is None:
+        assert found == {"native": 0, "env": {"OPENBLAS_NUM_THREADS": "1"}}
+    else:
+        assert found["env"] == given  # the user's count is theirs: nothing added
+        if _affinity() > 1:
+            assert found["native"] >= 1  # and BLAS does start its threads (the test can fail)

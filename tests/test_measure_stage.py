@@ -113,6 +113,21 @@ def test_worker_processes_measure_what_one_process_measures(
     assert _summary(_measured(manifest, jobs=2)) == _summary(_measured(manifest, jobs=1))
 
 
+@pytest.mark.parametrize("count", [1, 2, 3, 7, 31, 128, 1000, 10_007])
+@pytest.mark.parametrize("workers", [2, 3, 8])
+def test_pool_chunks_cover_every_item_once_and_shrink_to_single_items(count: int, workers: int) -> None:
+    chunks = forked.guided_chunks(count, workers, 16)
+    assert [first for first, _ in chunks] == [0] + [last for _, last in chunks[:-1]]
+    assert chunks[-1][1] == count
+    sizes = [last - first for first, last in chunks]
+    assert all(1 <= size <= 16 for size in sizes)
+    assert sizes == sorted(sizes, reverse=True)  # the small ones last: the workers end together
+    assert sizes[-1] == 1
+    if count >= 1000:
+        assert max(sizes) == 16 and len(chunks) < count / 5  # few round trips
+        assert sum(size == 1 for size in sizes) >= workers  # each worker's last pick is one clip
+
+
 def test_workers_measuring_is_when_the_parent_imports_triangulation(tmp_path: Path) -> None:
     """With --jobs 2 the parent imports what the next stage needs (`WARM_MODULES`) while the
     workers measure, and is done with it when the stage returns (nothing forks mid-import);

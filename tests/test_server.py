@@ -357,14 +357,16 @@ def test_a_served_command_runs_on_the_caller_s_cpus_and_niceness(
     server: dict[str, str], tmp_path: Path
 ) -> None:
     """`taskset -c N nice -n 5 blendspace build`: the served command runs on CPU N at niceness 5
-    (and `--jobs auto` counts one CPU), as the command would in the caller's own process."""
+    (and `--jobs auto` counts one CPU), as the command would in the caller's own process, with
+    BLAS in its own thread as there."""
     manifest = _project(tmp_path)
     plugins, seen = tmp_path / "plugins", tmp_path / "seen.json"
     plugins.mkdir()
     (plugins / "where_rule.py").write_text(
         textwrap.dedent(
             f"""
-            import json, os, pathlib
+            import json, os, pathlib, threading
+            import numpy
             from blendspace_pipeline.api import Rule
             from blendspace_pipeline.cpus import auto_jobs
 
@@ -375,8 +377,11 @@ def test_a_served_command_runs_on_the_caller_s_cpus_and_niceness(
                 summary = "says where it runs"
 
                 def check(self, space):
+                    matrix = numpy.ones((200, 200))
+                    matrix @ matrix  # BLAS: no thread of its own (cpus.one_blas_thread)
+                    threads = len(os.listdir("/proc/self/task")) - threading.active_count()
                     where = {{"pid": os.getpid(), "cpus": sorted(os.sched_getaffinity(0)),
-                              "nice": os.nice(0), "jobs": auto_jobs()}}
+                              "nice": os.nice(0), "jobs": auto_jobs(), "threads": threads}}
                     pathlib.Path({str(seen)!r}).write_text(json.dumps(where))
                     return []
             """
@@ -403,5 +408,5 @@ def test_a_served_command_runs_on_the_caller_s_cpus_and_niceness(
     assert done.returncode in (0, 1), done.stderr
     assert _status(server)["served"] == 1  # type: ignore[index]
     where = json.loads(seen.read_text(encoding="utf-8"))
-    assert where["cpus"] == [cpu] and where["jobs"] == 1
+    assert where["cpus"] == [cpu] and where["jobs"] == 1 and where["threads"] == 0
     assert where["nice"] == min(19, os.nice(0) + 5)

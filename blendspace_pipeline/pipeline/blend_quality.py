@@ -46,7 +46,7 @@ from blendspace_pipeline.motion.measure import trim
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.cache import write_atomic
-from blendspace_pipeline.pipeline.forked import explained_worker_loss
+from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_chunks
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
@@ -280,8 +280,9 @@ def _play_all(
     meanwhile: Callable[[], None] | None = None,
 ) -> list[float | None]:
     """Every point's foot skate, in ``jobs`` forked processes when there is enough to play (a cold
-    build: each point reads and prepares the clips of its triangle). Points of one triangle go to
-    one worker, so a clip is read about once; the values are the same as played here.
+    build: each point reads and prepares the clips of its triangle). The points are dealt out in
+    chunks of consecutive points of one triangle, mostly, so a clip is read about once; the values
+    are the same as played here.
     ``meanwhile`` runs in this process while the workers play (only then: the caller runs it
     itself when it was not called).
 
@@ -309,12 +310,16 @@ def _play_all(
         for index in rest:
             values[index] = here(index)
         return values
-    size = -(-len(rest) // jobs)
-    chunks = [[points[i][2:5] for i in rest[first : first + size]] for first in range(0, len(rest), size)]
+    # Consecutive points (of one triangle, mostly) go to one worker, which reads their clips once.
+    chunks = [
+        [points[i][2:5] for i in rest[first:last]] for first, last in guided_chunks(len(rest), jobs, 16)
+    ]
     global _FORKED
     _FORKED = (prepared, settings)
     try:
-        with ProcessPoolExecutor(len(chunks), mp_context=multiprocessing.get_context("fork")) as pool:
+        with ProcessPoolExecutor(
+            min(jobs, len(chunks)), mp_context=multiprocessing.get_context("fork")
+        ) as pool:
             results = pool.map(_play_chunk, chunks)  # submitted: the workers start now
             if meanwhile is not None:
                 meanwhile()

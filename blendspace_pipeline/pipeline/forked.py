@@ -61,6 +61,22 @@ def explained_worker_loss(work: str) -> Iterator[None]:
         ) from error
 
 
+def guided_chunks(count: int, workers: int, most: int) -> list[tuple[int, int]]:
+    """(first, last) index ranges covering ``count`` work items in order, for a pool of ``workers``:
+    each a quarter of the remaining items' share per worker, at most ``most`` and at least 1
+    (guided self-scheduling). A worker that got less CPU (the command's own process and writers
+    share the cores) takes fewer chunks, and the last chunks are single items, so the workers end
+    within about one item of each other. Equal chunks (16 clips; half of the foot-skate map each)
+    left one worker at the end alone for up to 0.1 s of a cold 1,000-clip build (0.2 s for the
+    map)."""
+    ranges, first = [], 0
+    while first < count:
+        size = max(1, min(most, -(-(count - first) // (4 * workers))))
+        ranges.append((first, first + size))
+        first += size
+    return ranges
+
+
 def run_tasks(tasks: Sequence[Task], jobs: int, start_order: Sequence[int] | None = None) -> None:
     """Run every task; raise the first failing task's error (in ``tasks`` order, the serial one).
     ``start_order``: the indices of ``tasks`` in the order children start (longest first)."""

@@ -23,7 +23,7 @@ from blendspace_pipeline.memory import keep_freed_memory
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import Measurement, TimeRange, measure
 from blendspace_pipeline.pipeline import cache
-from blendspace_pipeline.pipeline.forked import explained_worker_loss
+from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_chunks
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import adapter_for, read_clips
 from blendspace_pipeline.readers.limits import check_regular
@@ -247,21 +247,27 @@ def _small_batch(sizes: list[int]) -> bool:
 def _run(jobs: int, job_list: list[Job]) -> Iterator[Keyed]:
     if jobs > 1 and len(job_list) > 1:
         _import_readers(job_list)
-        # Chunks keep the per-task overhead small; workers return digests and measurements only.
-        chunk = max(1, min(16, len(job_list) // (4 * jobs)))
         workers = min(jobs, len(job_list))
+        # At most 16 clips (~0.1 s) a round trip through the pool's queues, the last ones single.
+        chunks = [job_list[first:last] for first, last in guided_chunks(len(job_list), workers, 16)]
         with ProcessPoolExecutor(workers, _pool_context(), initializer=keep_freed_memory) as pool:
-            results = pool.map(_measure_job, job_list, chunksize=chunk)  # the workers are forked now
+            results = pool.map(_measure_chunk, chunks)  # the workers are forked now
             # Joined before the pool closes: nothing forks later while the thread may hold an import lock.
             warming = _warm_imports()
             try:
                 with explained_worker_loss("measuring"):
-                    yield from results
+                    for chunk in results:
+                        yield from chunk
             finally:
                 if warming is not None:
                     warming.join()
     else:
         yield from map(_measure_job, job_list)
+
+
+def _measure_chunk(jobs: list[Job]) -> list[Keyed]:
+    """Worker entry: one chunk's jobs, in order (see `_measure_job`)."""
+    return [_measure_job(job) for job in jobs]
 
 
 def _import_readers(job_list: list[Job]) -> None:

@@ -326,6 +326,11 @@ def _flush() -> None:
 
 def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
     """Preload, listen and answer until stopped; 0 on a clean stop."""
+    from blendspace_pipeline.cpus import own_process
+
+    # As a command's own process does (`blendspace server start` has set them already; a daemon
+    # started some other way gets them too): every served command is forked from here.
+    own_process()
     _missing, imported_env = preload()
     from blendspace_pipeline.pipeline.outputs import warm
 
