@@ -313,3 +313,79 @@ def test_a_bad_sync_mode_is_a_manifest_error(tmp_path: Path, capsys: pytest.Capt
     assert f"{manifest.name}:{line}:" in err and "sync" in err, err
     assert "Traceback" not in err
     assert not (out / "cadence.blendspace.json").exists()
+
+
+def _mixed_skeleton_project(folder: Path, change: str) -> Path:
+    """The tidy set with its turning walks on another skeleton (``change``): every triangle that
+    touches them mixes skeletons, the others do not."""
+    from conftest import tidy_set
+
+    from blendspace_pipeline.motion.hostile import on_other_skeleton
+    from blendspace_pipeline.motion.procedural import generate
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    clips = folder / "clips"
+    clips.mkdir(parents=True)
+    for name, spec in tidy_set().items():
+        clip = generate(spec)
+        if name in ("walk_left", "tip_right"):
+            clip = on_other_skeleton(clip, change)
+        write_bvh_clip(clip, clips / f"{name}.bvh")
+    manifest = folder / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: mixed\nclips:\n  - path: clips/*.bvh\n"
+        "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 72}\n"
+        "  y: {feature: speed, min: -2, max: 2, divisions: 40}\n",
+        encoding="utf-8",
+    )
+    return manifest
+
+
+@pytest.mark.parametrize("fix", [False, True])
+@pytest.mark.parametrize("change", ["namespaced", "extra_joint", "missing_leaf", "reparented"])
+def test_a_set_that_mixes_skeletons_builds_and_plays_only_same_skeleton_blends(
+    change: str, fix: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A blend of clips on different skeletons is not played (no engine blends them; it crashed
+    the build with a broadcasting error): `inconsistent-skeleton` says why, and the foot-skate map
+    holds the blends of one skeleton."""
+    manifest = _mixed_skeleton_project(tmp_path / "p", change)
+    out = tmp_path / "out"
+    code = main(["build", str(manifest), "--out", str(out), "--jobs", "1", *([] if fix else ["--no-fix"])])
+    printed = capsys.readouterr()
+    assert code in (0, 1), printed.err
+    # The rule compares joint names (the measurement keeps no hierarchy): a joint moved under
+    # another parent is not reported, but its blends are not played either.
+    assert ("inconsistent-skeleton" in printed.out) == (change != "reparented")
+    doc = json.loads((out / "mixed.blendspace.json").read_text(encoding="utf-8"))
+    skate = [v for row in doc["blend_quality"]["foot_skate"] or [] for v in row if v is not None]
+    assert skate and all(0.0 <= v < 1.0 for v in skate)  # the one-skeleton triangles were played
+
+
+def test_real_mocap_beside_procedural_clips_builds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """CMU's 31-joint take in a triangle with two 19-joint procedural clips (a reviewer's first
+    draft): exit 3 before; now the build finishes and says the skeletons differ."""
+    shared_data("cmu", "131_01.bvh")
+    from blendspace_pipeline.motion.procedural import generate
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    for spec in (GaitSpec("idle", duration=2.0), GaitSpec("tip_left", turn_rate=90.0, duration=2.0)):
+        write_bvh_clip(generate(spec), tmp_path / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: mix\nclips:\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/cmu/131_01.bvh', range: auto}}\n"
+        "  - path: idle.bvh\n  - path: tip_left.bvh\n"
+        "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 100}\n"
+        "  y: {feature: speed, min: -3, max: 6, divisions: 90}\n",
+        encoding="utf-8",
+    )
+    for fix in ([], ["--no-fix"]):
+        out = tmp_path / f"out{len(fix)}"
+        code = main(["build", str(manifest), "--out", str(out), *fix])
+        printed = capsys.readouterr()
+        assert code in (0, 1), printed.err
+        assert "internal error" not in printed.err
+        assert (out / "mix.blendspace.json").is_file()

@@ -13,13 +13,13 @@ heading 0 and its left is +X; positive heading and turn rate turn left.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
-from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.clip import Clip, Skeleton
 from blendspace_pipeline.motion.procedural import HIP_HEIGHT, _convert_up, _scaled, humanoid_skeleton
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -285,3 +285,60 @@ def studio_set(*, seed: int = 118) -> list[HostileSpec]:
             )
         )
     return specs
+
+
+# Ways a studio's clip ends up on another skeleton than the rest of its set, the motion unchanged:
+# a DCC's namespace on every joint, a helper joint added (a prop or twist bone), a leaf joint lost
+# on export, and one joint under another parent.
+SKELETON_CHANGES = ("namespaced", "extra_joint", "missing_leaf", "reparented")
+
+
+def on_other_skeleton(clip: Clip, change: str) -> Clip:
+    """``clip``'s motion on a skeleton changed as ``change`` (one of `SKELETON_CHANGES`) says; the
+    hips and legs keep their names and motion, so it still measures as ``clip`` does."""
+    skeleton = clip.skeleton
+    names, parents = list(skeleton.names), list(skeleton.parents)
+    rest_t, rest_r = skeleton.rest_translations, skeleton.rest_rotations
+    rotations, translations = clip.rotations, clip.translations
+    leaf = max(
+        i
+        for i in range(len(names))
+        if i not in parents and "foot" not in names[i].lower() and "toe" not in names[i].lower()
+    )
+    if change == "namespaced":
+        names = [f"mixamorig:{name}" for name in names]
+    elif change == "extra_joint":
+        names.append("prop_r")
+        parents.append(leaf)
+        rest_t = np.vstack([rest_t, [[0.0, 0.05, 0.0]]])
+        rest_r = np.vstack([rest_r, quat.IDENTITY[None]])
+        frames = clip.frame_count
+        rotations = np.concatenate([rotations, np.tile(quat.IDENTITY, (frames, 1, 1))], axis=1)
+        translations = np.concatenate([translations, np.tile([0.0, 0.05, 0.0], (frames, 1, 1))], axis=1)
+    elif change == "missing_leaf":
+        keep = [i for i in range(len(names)) if i != leaf]
+        remap = {old: new for new, old in enumerate(keep)}
+        names = [names[i] for i in keep]
+        parents = [-1 if parents[i] < 0 else remap[parents[i]] for i in keep]
+        rest_t, rest_r = rest_t[keep], rest_r[keep]
+        rotations, translations = rotations[:, keep], translations[:, keep]
+    elif change == "reparented":
+        # The leaf moves under its grandparent (same names, another hierarchy).
+        grandparent = parents[parents[leaf]]
+        parents[leaf] = grandparent if grandparent >= 0 else parents[leaf]
+    else:
+        raise ValueError(f"unknown skeleton change {change!r}; one of {', '.join(SKELETON_CHANGES)}")
+    other = Skeleton(
+        names=tuple(names),
+        parents=tuple(parents),
+        rest_translations=np.asarray(rest_t, dtype=np.float64),
+        rest_rotations=np.asarray(rest_r, dtype=np.float64),
+        has_hierarchy=skeleton.has_hierarchy,
+    )
+    return replace(
+        clip,
+        skeleton=other,
+        rotations=np.ascontiguousarray(rotations),
+        translations=np.ascontiguousarray(translations),
+        notes=list(clip.notes),
+    )

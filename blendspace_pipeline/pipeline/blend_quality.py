@@ -150,11 +150,12 @@ def _play_point(
     settings: RigSettings,
 ) -> float | None:
     """The foot skate of one blend, or None when it cannot be played (a clip unreadable or
-    without feet) or has no planted foot."""
+    without feet, clips of different skeletons) or has no planted foot."""
     clips = [prepared[i] for i in indices]
-    if any(c is None for c in clips):
-        return None
-    played = play([c for c in clips if c is not None], weights, rates, settings, fps=SKATE_FPS)
+    ready = [c for c in clips if c is not None]
+    if len(ready) < len(clips) or not all(ready[0].clip.skeleton.same_layout(c.clip.skeleton) for c in ready):
+        return None  # different joints: no engine blends them (`inconsistent-skeleton` says so)
+    played = play(ready, weights, rates, settings, fps=SKATE_FPS)
     return played.foot_sliding
 
 
