@@ -114,6 +114,44 @@ def test_an_old_build_of_real_files_is_replaced_by_the_set(
     assert (out / "keep.txt").read_text(encoding="utf-8") == "a user's file\n"
 
 
+@pytest.mark.parametrize("previous", [False, True])
+@pytest.mark.parametrize(
+    "in_the_way", ["t.report.html", "t.blendspace.json", "clips", "clips/turn_mirror.usda"]
+)
+def test_a_user_s_file_or_folder_where_an_output_goes_is_kept_and_nothing_is_written(
+    in_the_way: str, previous: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder at an output's path, or a file at the generated clips' folder: exit 2 naming it,
+    the user's file or folder untouched (a folder there was deleted), and no generation left
+    behind; the rest of a previous build's set still stands."""
+    out, manifest = tmp_path / "out", _project(tmp_path / "p")
+    before: dict[str, bytes] = {}
+    if previous:
+        assert _build(manifest, out, capsys)[0] in (0, 1)
+        assert (out / "clips" / "turn_mirror.usda").is_file()  # the generated clip this test uses
+        before = {name: (out / name).read_bytes() for name in NAMES if name != in_the_way}
+        shutil.rmtree(out / "clips") if in_the_way == "clips" else (out / in_the_way).unlink()
+        _project(tmp_path / "p", 50)  # the next build is another generation
+    user = out / in_the_way
+    if in_the_way == "clips":
+        user.parent.mkdir(parents=True, exist_ok=True)
+        user.write_text("a user's notes\n", encoding="utf-8")
+    else:
+        user.mkdir(parents=True)
+        (user / "notes.txt").write_text("precious\n", encoding="utf-8")
+    home = out / ".blendspace" / "t"
+    generations = sorted(home.glob("g-*"))
+    code, err = _build(manifest, out, capsys)
+    assert code == 2, err
+    assert f"({user})" in err and "move or rename it" in err and "Traceback" not in err
+    if in_the_way == "clips":
+        assert user.read_text(encoding="utf-8") == "a user's notes\n"
+    else:
+        assert (user / "notes.txt").read_text(encoding="utf-8") == "precious\n"
+    assert sorted(home.glob("g-*")) == generations  # no generation added
+    assert {name: (out / name).read_bytes() for name in before} == before
+
+
 def test_a_library_that_says_yes_to_a_truncated_png_is_caught(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

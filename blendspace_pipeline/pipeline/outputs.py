@@ -586,6 +586,7 @@ def _symlinks_work(folder: Path) -> bool:
 def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> str | None:
     """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above).
     Returns the generation's folder name (None where files are moved into place, no symlinks)."""
+    _check_targets(out_dir, files)
     if not _symlinks_work(out_dir):
         for relative in files:
             target = out_dir / relative
@@ -595,25 +596,31 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> s
     home = out_dir / GENERATIONS / name
     home.mkdir(parents=True, exist_ok=True)
     generation = f"g-{_content_hash(staging, files)}"
-    if not (home / generation).is_dir():
+    fresh = not (home / generation).is_dir()
+    if fresh:
         os.replace(staging, home / generation)
     else:
         _refresh(staging, home / generation, files)
     documents = [relative for relative in files if relative.parent == Path(".")]
-    # Generated clips are real files (hard links into the generation, else copies): engines import
-    # them as assets (Unity does not support symlinked assets) and exporters resolve their paths,
-    # which must not lead into a generation folder that the next build deletes. They are placed
-    # before the switch, so the new documents never name a clip that is not there yet.
-    for relative in files:
-        if relative not in documents:
-            _place(home / generation / relative, out_dir / relative)
     pointer = home / CURRENT
     previous = os.readlink(pointer) if pointer.is_symlink() else None
-    if previous != generation:
-        switch = home / f".{CURRENT}-{os.getpid()}"
-        switch.unlink(missing_ok=True)
-        os.symlink(generation, switch)
-        os.replace(switch, pointer)  # the one rename that swaps the whole set
+    try:
+        # Generated clips are real files (hard links into the generation, else copies): engines
+        # import them as assets (Unity does not support symlinked assets) and exporters resolve
+        # their paths, which must not lead into a generation folder that the next build deletes.
+        # They are placed before the switch, so the new documents never name a clip not there yet.
+        for relative in files:
+            if relative not in documents:
+                _place(home / generation / relative, out_dir / relative)
+        if previous != generation:
+            switch = home / f".{CURRENT}-{os.getpid()}"
+            switch.unlink(missing_ok=True)
+            os.symlink(generation, switch)
+            os.replace(switch, pointer)  # the one rename that swaps the whole set
+    except BaseException:
+        if fresh and previous != generation:  # not switched to: no build will ever use it
+            shutil.rmtree(home / generation, ignore_errors=True)
+        raise
     wanted = {out_dir / relative for relative in files}
     for relative in documents:
         _link(out_dir / relative, home / CURRENT / relative)
@@ -622,6 +629,24 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> s
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
     return generation
+
+
+def _check_targets(out_dir: Path, files: Sequence[Path]) -> None:
+    """Refuse, before anything moves, an output whose place holds a folder (never deleted: it is
+    the user's) or whose folder is a file, as the file system would half-way through."""
+    for relative in files:
+        target = out_dir / relative
+        if target.is_dir() and not target.is_symlink():
+            raise IsADirectoryError(
+                errno.EISDIR, "a folder is where an output goes; move or rename it", str(target)
+            )
+        for folder in list(relative.parents)[:-1]:  # the output folder itself exists by now
+            if (out_dir / folder).exists() and not (out_dir / folder).is_dir():
+                raise NotADirectoryError(
+                    errno.ENOTDIR,
+                    "a file is where the outputs' folder goes; move or rename it",
+                    str(out_dir / folder),
+                )
 
 
 def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
@@ -663,9 +688,7 @@ def _link(link: Path, target: Path) -> None:
     temporary = link.with_name(f".{link.name}.{os.getpid()}.link")
     temporary.unlink(missing_ok=True)
     os.symlink(relative, temporary)
-    if link.is_dir() and not link.is_symlink():
-        shutil.rmtree(link)
-    os.replace(temporary, link)  # over a previous build's real file too
+    os.replace(temporary, link)  # over a previous build's real file too (a folder: `_check_targets`)
 
 
 def _drop_dangling_links(out_dir: Path, home: Path, wanted: set[Path]) -> None:
