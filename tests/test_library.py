@@ -4,6 +4,7 @@ clips really fill the placeholders (rebuilding with them removes the findings)."
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,7 +15,7 @@ pytest.importorskip("pyarrow")
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.pipeline.analysis import analyse
-from blendspace_pipeline.pipeline.library import read_index
+from blendspace_pipeline.pipeline.library import read_index, write_index
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 
 MANIFEST_CLIPS = [
@@ -124,3 +125,114 @@ def test_index_runs_on_a_given_scheduler(
     assert sorted(r["name"] for r in read_index(str(tmp_path / "a"))) == ["take_run_right", "take_walk_right"]
     assert sorted(r["name"] for r in read_index(store)) == ["take_run_right", "take_walk_right"]
     assert capsys.readouterr().out.count("indexed 2 animation(s)") == 2
+
+
+def _project(tmp_path: Path) -> Path:
+    """The gait project of the first test (its placeholders need a library), not yet patched."""
+    _write(tmp_path / "project" / "clips", MANIFEST_CLIPS)
+    manifest = tmp_path / "project" / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: gait\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    return manifest
+
+
+def _damaged_index(tmp_path: Path) -> str:
+    (tmp_path / "damaged").mkdir()
+    (tmp_path / "damaged" / "index.parquet").write_bytes(b"not parquet")
+    return str(tmp_path / "damaged")
+
+
+def _foreign_parquet(tmp_path: Path) -> str:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    (tmp_path / "foreign").mkdir()
+    pq.write_table(pa.table({"sales": [1, 2]}), tmp_path / "foreign" / "index.parquet")
+    return str(tmp_path / "foreign")
+
+
+def _junk_file(tmp_path: Path) -> str:
+    (tmp_path / "junk.bin").write_bytes(b"\x00junk")
+    return str(tmp_path / "junk.bin")
+
+
+# Stores that are not an index, and what suggest must say about each (after "STORE: ").
+NOT_AN_INDEX: dict[str, tuple[Callable[[Path], str], str]] = {
+    "missing-folder": (lambda tmp_path: str(tmp_path / "no-such-store"), "the library store does not exist"),
+    # The existence test goes through fsspec, so a URL is judged like a folder (os.path would not).
+    "missing-url": (lambda tmp_path: f"memory://{tmp_path.name}/none", "the library store does not exist"),
+    "junk-file": (_junk_file, "not a blendspace index (a file, not the folder `blendspace index` writes)"),
+    "project-folder": (
+        lambda tmp_path: str(tmp_path / "project"),
+        "not a blendspace index (no index.parquet)",
+    ),
+    "damaged-index": (_damaged_index, "index.parquet cannot be read: "),
+    "foreign-parquet": (_foreign_parquet, "not a blendspace index (index.parquet has no digest, name, path"),
+    # The same words as `build --library` gives for a store fsspec cannot open (store_problem).
+    "unknown-protocol": (lambda tmp_path: "nosuchprotocol://store", "the library store cannot be opened: "),
+}
+
+
+@pytest.mark.parametrize("kind", NOT_AN_INDEX)
+@pytest.mark.parametrize("output", ["text", "json"])
+def test_suggest_rejects_a_store_that_is_not_an_index(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str, output: str
+) -> None:
+    """A typo in a CI variable must be bad input (exit 2) naming the store, not an empty library
+    ("no library clip of this skeleton" under every placeholder, exit 0)."""
+    manifest = _project(tmp_path)
+    make_store, problem = NOT_AN_INDEX[kind]
+    store = make_store(tmp_path)
+    assert main(["suggest", str(manifest), "--library", store, "--format", output]) == 2
+    printed = capsys.readouterr()
+    assert printed.out == ""
+    first, hint = printed.err.splitlines()[:2]
+    assert first.startswith(f"{store}: {problem}")
+    assert hint.startswith("    hint: ")
+    if kind != "unknown-protocol":
+        assert f"blendspace index LIBRARY_DIR --store {store}" in hint
+    assert "Traceback" not in printed.err
+
+
+def test_suggest_reads_the_index_of_an_empty_library(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An index of a folder with no clips is a valid index with no rows: nothing fits, exit 0."""
+    manifest = _project(tmp_path)
+    (tmp_path / "empty-library").mkdir()
+    store = str(tmp_path / "store")
+    assert main(["index", str(tmp_path / "empty-library"), "--store", store, "--workers", "1"]) == 0
+    assert "indexed 0 animation(s)" in capsys.readouterr().out
+    assert main(["suggest", str(manifest), "--library", store]) == 0
+    out = capsys.readouterr().out
+    assert "placeholder(s), 0 library clip(s) of its skeleton" in out
+    assert "no library clip of this skeleton" in out
+
+
+def test_suggest_reads_an_index_at_an_fsspec_url(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A store is any fsspec location: an (empty) index in fsspec's in-memory filesystem is found."""
+    import fsspec
+
+    manifest = _project(tmp_path)
+    store = f"memory://{tmp_path.name}/store"
+    write_index(store, [])
+    try:
+        assert main(["suggest", str(manifest), "--library", store, "--format", "json"]) == 0
+    finally:
+        fsspec.filesystem("memory").rm(f"/{tmp_path.name}", recursive=True)
+    result = json.loads(capsys.readouterr().out)
+    assert result["placeholders"] and all(not p["candidates"] for p in result["placeholders"])
+
+
+@pytest.mark.parametrize("count", ["0", "-1"])
+def test_suggest_rejects_a_count_below_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], count: str
+) -> None:
+    """--count 0 listed no candidate and said "no library clip" under every placeholder, and -1
+    dropped the last of each ranking: both are usage errors (exit 2) naming the option."""
+    manifest = _project(tmp_path)
+    store = str(tmp_path / "store")
+    write_index(store, [])
+    assert main(["suggest", str(manifest), "--library", store, "--count", count]) == 2
+    printed = capsys.readouterr()
+    assert printed.out == ""
+    assert f"argument --count: {count} is not a positive number of candidates" in printed.err

@@ -7,13 +7,16 @@ from __future__ import annotations
 import copy
 import math
 import os
+import re
 from pathlib import Path
 
 import pytest
 
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.pipeline import forked, placeholders
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.space.model import BlendSpace
+from blendspace_pipeline.writers.bvh import write_bvh_clip
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_project" / "manifest.yaml"
 pytestmark = pytest.mark.skipif(not forked.can_fork(), reason="needs fork")
@@ -89,6 +92,48 @@ def test_a_look_ahead_the_serial_search_never_makes_cannot_fail_the_build(
 
     monkeypatch.setattr(placeholders, "_with_virtual", crashing_off_path)
     assert _answer(_converged(analysed, 2)) == _answer(serial)
+
+
+def _simulation_note(hint: str) -> str:
+    return hint[hint.index("tried by simulation") :]
+
+
+def test_a_moved_coverage_placeholder_is_named_once_with_what_was_tested(tmp_path: Path) -> None:
+    """Three clips on one line: the uncovered-area marks all move to the same position. The note
+    names it once, and says what the simulation tested for that rule (coverage grew), not that
+    the finding went away (one line of clips stays uncovered)."""
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for spec in [
+        GaitSpec("idle", duration=2.0),
+        GaitSpec("walk_fwd", speed=1.4),
+        GaitSpec("run_fwd", speed=4.0, duration=0.8, stride_length=2.6),
+    ]:
+        write_bvh_clip(generate(spec, source=clips / f"{spec.name}.bvh"), clips / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips: [{path: clips/*.bvh}]\naxes:\n"
+        "  x: {feature: turn_rate, min: -180, max: 180, divisions: 100}\n"
+        "  y: {feature: speed, min: -3, max: 6, divisions: 90}\n",
+        encoding="utf-8",
+    )
+    coverage = next(d for d in analyse(manifest).diagnostics if d.rule == "uncovered-area")
+    note = _simulation_note(coverage.hint or "")
+    positions = re.findall(r"\([^()]*\)", note)
+    assert positions and len(positions) == len(set(positions)), note
+    assert positions == [f"({x:.3g}, {y:.3g})" for x, y in (p.position for p in coverage.placeholders)]
+    assert note == (
+        f"tried by simulation, a clip at {', '.join(positions)} covers more of the space without adding a finding"
+    )
+
+
+def test_a_moved_placeholder_of_another_rule_removes_the_finding(analysed: BlendSpace) -> None:
+    """For every rule but uncovered-area the simulation tested that the finding is gone."""
+    moved = [d for d in _converged(analysed, 1).diagnostics if d.hint and "tried by simulation" in d.hint]
+    assert moved and all(d.rule != "uncovered-area" for d in moved)
+    for diagnostic in moved:
+        note = _simulation_note(diagnostic.hint or "")
+        assert re.fullmatch(r"tried by simulation, a clip at .+ removes it without adding a finding", note)
 
 
 def test_results_come_back_in_order_and_the_first_failure_in_order_is_raised() -> None:

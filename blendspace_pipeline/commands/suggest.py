@@ -28,7 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--library", required=True, metavar="STORE", help="a store written by `blendspace index`"
     )
-    parser.add_argument("--count", type=int, default=3, help="candidates per placeholder (default 3)")
+    parser.add_argument(
+        "--count", type=_count, default=3, metavar="N", help="candidates per placeholder (default 3)"
+    )
     parser.add_argument("--format", choices=("text", "json"), default="text", help="output format")
 
 
@@ -36,8 +38,9 @@ def run(args: argparse.Namespace) -> int:
     from blendspace_pipeline.pipeline.analysis import analyse
     from blendspace_pipeline.pipeline.library import read_index, skeleton_signature
 
-    space = analyse(args.manifest)
+    # The store first: a wrong one is bad input (exit 2), found before the manifest's analysis.
     rows = read_index(args.library)
+    space = analyse(args.manifest)
     skeletons = {skeleton_signature(s.clip.measurement.joint_names) for s in space.samples if not s.generated}
     in_manifest = {str(Path(s.clip.source).resolve()) for s in space.samples}
     candidates = [r for r in rows if r["skeleton"] in skeletons and r["path"] not in in_manifest]
@@ -107,6 +110,23 @@ def run(args: argparse.Namespace) -> int:
         lines += [f"  {line}" for line in patch.splitlines()]
     sys.stdout.write("\n".join(lines) + "\n")
     return EXIT_OK
+
+
+def _count(text: str) -> int:
+    """argparse type for --count: a whole number of at least 1 (argparse turns the error into exit
+    2 naming the option). 0 listed no candidate and so said "no library clip" under every
+    placeholder of a library that has them; a negative count sliced the ranking from the end."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a whole number: give 1 or more, e.g. --count 3"
+        ) from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(
+            f"{value} is not a positive number of candidates: give 1 or more, e.g. --count 3"
+        )
+    return value
 
 
 def _patch(manifest: Path, proposals: list[dict[str, Any]]) -> str:

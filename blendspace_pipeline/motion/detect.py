@@ -404,13 +404,19 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
             f"facing taken from joint {clip.skeleton.names[joint]!r} axis {axis_name} (assumed); "
             "set `skeleton.forward` if the character faces another way"
         )
-        if clip.skeleton.has_hierarchy:
-            guess = DetectionGuess(
-                "facing",
-                f"{clip.skeleton.names[joint]} {axis_name}",
-                "no hip line to face by (no left/right hips recognised)",
-                "skeleton: {forward: +z} (the root joint's forward axis) or name the hips",
-            )
+        # A flat track set (Godot) too: its root track's forward axis is a convention the file
+        # does not state, and left and right swap with it (a strafe's sign).
+        evidence = (
+            "no hip line to face by (no left/right hips recognised)"
+            if clip.skeleton.has_hierarchy
+            else "no hip line to face by (animation tracks without the skeleton's hierarchy)"
+        )
+        guess = DetectionGuess(
+            "facing",
+            f"{clip.skeleton.names[joint]} {axis_name}",
+            evidence,
+            "skeleton: {forward: +z} (the root joint's forward axis) or name the hips",
+        )
     return Facing(
         label=f"{clip.skeleton.names[joint]} axis {axis_name}",
         vectors=from_joint_axis,

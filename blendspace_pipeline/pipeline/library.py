@@ -12,12 +12,14 @@ storage when its fsspec package is installed):
 
 Entries are addressed by content, so a file already in the store (the same bytes, wherever it
 lives) is not measured again, and CI, the farm and workstations share the work. `read_index`
-loads the table back; `suggest` (commands/suggest.py) looks placeholders up in it.
+loads the table back; `suggest` (commands/suggest.py) looks placeholders up in it. `store_problem`
+is the check `build --library` and `suggest --library` share for a store fsspec cannot open.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import os
 from collections.abc import Iterable, Sequence
@@ -26,12 +28,35 @@ from pathlib import Path
 from typing import Any
 
 from blendspace_pipeline import __version__
+from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import Measurement, measure
 from blendspace_pipeline.pipeline.cache import MEASUREMENT_REVISION, from_json
 from blendspace_pipeline.readers import read_clips, supported_suffixes
 
 INDEX_NAME = "index.parquet"
+# The columns every row of an index has (`_row`): without them a Parquet file is someone else's.
+INDEX_COLUMNS = frozenset({"path", "digest", "name", "skeleton"})
+
+
+def store_problem(store: str) -> tuple[str, str] | None:
+    """Why fsspec cannot open ``store`` at all, as (what is wrong, how to fix it); None when it can.
+
+    Shared by the commands that take a store (the build's `--library`, `suggest --library`), so
+    an unknown protocol or a missing driver reads the same in both. Each says where (the
+    manifest, the store) and adds its own way out."""
+    if importlib.util.find_spec("fsspec") is None:
+        return "needs fsspec, which is not installed", "pip install 'blendspace-pipeline[library]'"
+    import fsspec
+
+    try:
+        fsspec.core.url_to_fs(store)
+    except (ImportError, ValueError, OSError) as error:  # an unknown protocol, a missing driver
+        return (
+            f"cannot be opened: {error}",
+            "give a folder or a URL whose fsspec package is installed (s3fs for s3://, gcsfs for gs://)",
+        )
+    return None
 
 
 def skeleton_signature(joint_names: Iterable[str]) -> str:
@@ -199,14 +224,53 @@ def write_index(store: str, rows: list[dict[str, Any]]) -> None:
 
 
 def read_index(store: str) -> list[dict[str, Any]]:
-    """The store's rows (an empty list for a store not indexed yet)."""
+    """The rows of the index `blendspace index` wrote to ``store`` (none for an index of an empty
+    library).
+
+    Anything else is an InputError (exit 2) naming the store: a store that cannot be opened, is
+    not there, is a file, or is a folder without an index (a typo in a CI variable must not read
+    as "nothing in the library fits"), and an index that cannot be read."""
+    problem = store_problem(store)
+    if problem is not None:
+        raise InputError(f"the library store {problem[0]}", path=store, hint=problem[1])
     import fsspec
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
+    index = f"`blendspace index LIBRARY_DIR --store {store}`"
     fs, root = fsspec.core.url_to_fs(store)
     target = f"{root.rstrip('/')}/{INDEX_NAME}"
-    if not fs.exists(target):
-        return []
-    with fs.open(target, "rb") as stream:
-        rows: list[dict[str, Any]] = pq.read_table(stream).to_pylist()
+    try:
+        # The index first: on object storage a "folder" is only a key prefix, so only when the
+        # index is missing is the store itself looked at, to say what is there instead.
+        if not fs.exists(target):
+            if not fs.exists(root):
+                raise InputError(
+                    "the library store does not exist",
+                    path=store,
+                    hint=f"check the path, or make one with {index}",
+                )
+            what = (
+                f"no {INDEX_NAME}" if fs.isdir(root) else "a file, not the folder `blendspace index` writes"
+            )
+            raise InputError(
+                f"not a blendspace index ({what})",
+                path=store,
+                hint=f"check the path, or make one with {index}",
+            )
+        with fs.open(target, "rb") as stream:
+            table = pq.read_table(stream)
+    except (OSError, pa.ArrowException) as error:  # unreadable, or not Parquet at all
+        raise InputError(
+            f"{INDEX_NAME} cannot be read: {error}", path=store, hint=f"make it again with {index}"
+        ) from None
+    missing = INDEX_COLUMNS - set(table.column_names)
+    # An empty library's index has no columns at all, and that is a valid, empty index.
+    if table.num_rows and missing:
+        raise InputError(
+            f"not a blendspace index ({INDEX_NAME} has no {', '.join(sorted(missing))} column)",
+            path=store,
+            hint=f"check the path, or make one with {index}",
+        )
+    rows: list[dict[str, Any]] = table.to_pylist()
     return rows

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import multiprocessing
 import os
 import pickle
@@ -163,26 +162,18 @@ def measure_files(
 
 
 def _check_store(loaded: LoadedManifest, store: str) -> None:
-    """A store the build cannot open is bad input (exit 2), said once, not a crash per clip."""
-    if importlib.util.find_spec("fsspec") is None:
-        problem = "needs fsspec, which is not installed"
-        hint = "pip install 'blendspace-pipeline[library]'"
-    else:
-        import fsspec
+    """A store the build cannot open is bad input (exit 2), said once, not a crash per clip. (A
+    store that does not exist yet is not: the build measures what it does not find there.)"""
+    from blendspace_pipeline.pipeline.library import store_problem
 
-        try:
-            fsspec.core.url_to_fs(store)
-            return
-        except (ImportError, ValueError, OSError) as error:  # an unknown protocol, a missing driver
-            problem = f"cannot be opened: {error}"
-            hint = (
-                "give a folder or a URL whose fsspec package is installed (s3fs for s3://, gcsfs for gs://)"
-            )
-    raise InputError(
-        f"the library store {store!r} {problem}",
-        path=loaded.path,
-        hint=f"{hint}, or drop --library / {cache.LIBRARY_VARIABLE}",
-    )
+    found = store_problem(store)
+    if found is not None:
+        problem, hint = found
+        raise InputError(
+            f"the library store {store!r} {problem}",
+            path=loaded.path,
+            hint=f"{hint}, or drop --library / {cache.LIBRARY_VARIABLE}",
+        )
 
 
 def _measure_all(job_list: list[Job], pack: cache.Pack, jobs: int, progress: Progress | None) -> list[Result]:

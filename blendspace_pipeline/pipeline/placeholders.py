@@ -112,8 +112,12 @@ def converge_placeholders(space: BlendSpace, jobs: int = 1) -> None:
         if lost and not any(m.priority == "suggested" for m in marks):
             note = "no single added clip removes this finding without adding another"
         elif moved:
-            at = ", ".join(f"({p[0]:.3g}, {p[1]:.3g})" for p in moved)
-            note = f"tried by simulation, a clip at {at} removes it without adding a finding"
+            # Several marks can move to the same position (their placeholders are merged below):
+            # each position once, in the order found.
+            at = ", ".join(dict.fromkeys(f"({p[0]:.3g}, {p[1]:.3g})" for p in moved))
+            # Say what the simulation tested: for uncovered-area that coverage grew (`cured`).
+            helps = "covers more of the space" if diagnostic.rule == "uncovered-area" else "removes it"
+            note = f"tried by simulation, a clip at {at} {helps} without adding a finding"
         if unchecked:
             extra = "its placeholder was not checked by simulation (budget spent), so none is suggested"
             note = f"{note}; {extra}" if note else extra
