@@ -4,6 +4,7 @@ and an edit re-measures only the clip it touched."""
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -113,6 +114,25 @@ def test_an_unchanged_check_replays_and_an_edited_manifest_runs_again(
     )
     _, text = _run(["check", str(manifest)], capsys)
     assert counter.analyses == 2 and "too-close" in text and counter.measured.count("walk") == 1
+
+
+def test_a_check_runs_again_when_the_code_that_runs_it_moved(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same version of the tool with other code (an edited checkout, a package installed on
+    `sys.path`) does not replay what the old code printed."""
+    manifest = _project(tmp_path)
+    counter = Counter(monkeypatch)
+    first = _run(["check", str(manifest)], capsys)
+    assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 1
+    packages = tmp_path / "site-packages"
+    packages.mkdir()
+    monkeypatch.setattr(sys, "path", [*sys.path, str(packages)])  # a package folder appears
+    assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 2
+    assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 2  # stamped again
+    (packages / "studio_tool.py").write_text("", encoding="utf-8")  # something installed there
+    os.utime(packages, ns=(1, 1))  # its folder's mtime moved (on any clock granularity)
+    assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 3
 
 
 def test_bad_input_is_never_stamped(

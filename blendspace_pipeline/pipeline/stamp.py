@@ -1,7 +1,7 @@
 """Build stamps: a `build` or `check` whose inputs and outputs did not move returns at once.
 
 A finished run records, per invocation (command, manifests, options, working folder, tool
-version, measurement revision), what it read and wrote: every input file (manifests, clips,
+version and the fingerprint of its code, measurement revision), what it read and wrote: every input file (manifests, clips,
 layer manifests and clips, the rule modules it ran) and every folder that holds a clip (a file
 added to a globbed folder changes the folder's mtime), each with its size, mtime and SHA-256,
 every output with the same, and what the run printed and its exit code. The next identical
@@ -61,7 +61,11 @@ RESULT_VARIABLES = (
 
 
 def invocation_key(command: str, manifests: Sequence[Path], options: dict[str, object]) -> str:
-    """What makes two runs the same: the command, its manifests and options, where it runs."""
+    """What makes two runs the same: the command, its manifests and options, where it runs, and
+    the code that runs it (an edited checkout of the tool under the same version, a package
+    installed or removed: `server.address.fingerprint`, ~1 ms of stat calls)."""
+    from blendspace_pipeline.server.address import fingerprint
+
     described = {
         "command": command,
         "manifests": [str(Path(m).absolute()) for m in manifests],
@@ -70,6 +74,7 @@ def invocation_key(command: str, manifests: Sequence[Path], options: dict[str, o
         "environment": {name: os.environ.get(name, "") for name in RESULT_VARIABLES},
         "cwd": os.getcwd(),
         "version": __version__,
+        "code": fingerprint(),
         "revision": MEASUREMENT_REVISION,
         "stamp": STAMP_VERSION,
     }
