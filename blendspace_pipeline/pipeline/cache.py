@@ -38,8 +38,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # Bumped whenever the same clip would measure differently (a new feature, a changed detection),
 # so a developer's or CI's cache never serves results of older code under an unchanged version.
 # 3: detection from the body, sway-free heading; 4: foot contacts and plant phases;
-# 5: readers refuse out-of-range data (frame rate, angles, sizes) that earlier revisions measured.
-MEASUREMENT_REVISION = 5
+# 5: readers refuse out-of-range data (frame rate, angles, sizes) that earlier revisions measured;
+# 6: an assumed facing of a track set without hierarchy (Godot) is a detection guess.
+MEASUREMENT_REVISION = 6
 
 
 def cache_key(
