@@ -270,6 +270,26 @@ def test_a_default_build_writes_what_one_process_writes(tmp_path: Path) -> None:
         assert (tmp_path / "default" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name
 
 
+def _project_with_plugins(tmp_path: Path, suffix: str) -> tuple[Path, Path]:
+    """Three clips of the tidy set as ``suffix`` files, their manifest, and an empty folder for a
+    rule plugin that reports what the command's process looks like."""
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for name, spec in list(tidy_set().items())[:3]:
+        clip = generate(replace(spec, name=name))
+        if suffix == "usda":
+            from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+            write_usd_clip(clip, clips / f"{name}.usda", meters_per_unit=1.0, up_axis="y")
+        else:
+            write_bvh_clip(clip, clips / f"{name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(f"schema_version: 1\nname: t\nclips:\n  - path: clips/*.{suffix}\n", encoding="utf-8")
+    plugins = tmp_path / "plugins"
+    plugins.mkdir()
+    return manifest, plugins
+
+
 @pytest.mark.parametrize("given", [None, "2"])
 def test_a_command_reads_usd_without_tbb_threads_and_says_nothing_about_it(
     given: str | None, tmp_path: Path
@@ -277,18 +297,8 @@ def test_a_command_reads_usd_without_tbb_threads_and_says_nothing_about_it(
     """`blendspace` keeps usd-core to one thread in its own process (TBB's workers do not survive
     the forks of `--jobs`), quietly, unless the user set PXR_WORK_THREAD_LIMIT."""
     pytest.importorskip("pxr")
-    from blendspace_pipeline.writers.usd_clip import write_usd_clip
-
-    clips = tmp_path / "clips"
-    clips.mkdir()
-    for name, spec in list(tidy_set().items())[:3]:
-        write_usd_clip(
-            generate(replace(spec, name=name)), clips / f"{name}.usda", meters_per_unit=1.0, up_axis="y"
-        )
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.usda\n", encoding="utf-8")
-    plugins, seen = tmp_path / "plugins", tmp_path / "seen.txt"
-    plugins.mkdir()
+    manifest, plugins = _project_with_plugins(tmp_path, "usda")
+    seen = tmp_path / "seen.txt"
     (plugins / "threads_rule.py").write_text(
         "import pathlib\n"
         "from pxr import Work\n"
@@ -329,14 +339,8 @@ def test_a_command_reads_usd_without_tbb_threads_and_says_nothing_about_it(
 def test_a_command_runs_blas_in_its_own_thread(given: dict[str, str] | None, tmp_path: Path) -> None:
     """`blendspace` runs numpy's and scipy's BLAS without threads of their own in its process (they
     spin after every call, on the CPUs the --jobs workers use), unless the user set a count."""
-    clips = tmp_path / "clips"
-    clips.mkdir()
-    for name, spec in list(tidy_set().items())[:3]:
-        write_bvh_clip(generate(replace(spec, name=name)), clips / f"{name}.bvh")
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
-    plugins, seen = tmp_path / "plugins", tmp_path / "seen.json"
-    plugins.mkdir()
+    manifest, plugins = _project_with_plugins(tmp_path, "bvh")
+    seen = tmp_path / "seen.json"
     (plugins / "blas_rule.py").write_text(
         "import json, os, pathlib, threading\n"
         "import numpy, scipy.linalg\n"
