@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections import Counter, defaultdict
+from collections import defaultdict
 from collections.abc import Iterator
 
 from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView
@@ -27,11 +27,13 @@ class UnitsDoubt(Rule):
             if sample.skeleton_key and not sample.generated:
                 groups[sample.skeleton_key].append(sample)
         for samples in groups.values():
-            readings = Counter(_reading(s) for s in samples)
-            if len(readings) < 2:
+            # The reading most clips agree with; the clips that do not agree with it are the odd ones.
+            common = max(
+                (_reading(s) for s in samples), key=lambda r: sum(_agree(r, _reading(o)) for o in samples)
+            )
+            odd = [s for s in samples if not _agree(_reading(s), common)]
+            if not odd:
                 continue
-            common, _count = readings.most_common(1)[0]
-            odd = [s for s in samples if _reading(s) != common]
             details = ", ".join(
                 f"{s.name} ({s.up_axis.upper()} up, {s.meters_per_unit:.4g} m/unit, {s.units_source})"
                 for s in odd
@@ -44,5 +46,15 @@ class UnitsDoubt(Rule):
             )
 
 
+# Units within 1 % of each other are one unit written two ways (`units: 0.0564` for CMU's
+# 0.0254 / 0.45 = 0.05644...), not a second reading: the unit mix-ups this rule is for differ
+# by 2.2x (CMU's unit and the inch) or more (inch and cm, cm and m).
+SAME_UNIT = 0.01
+
+
 def _reading(sample: SampleView) -> tuple[str, float]:
-    return sample.up_axis, round(sample.meters_per_unit, 9)
+    return sample.up_axis, sample.meters_per_unit
+
+
+def _agree(a: tuple[str, float], b: tuple[str, float]) -> bool:
+    return a[0] == b[0] and abs(a[1] - b[1]) <= SAME_UNIT * max(a[1], b[1])

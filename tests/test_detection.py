@@ -235,6 +235,41 @@ def test_one_skeleton_one_answer(tmp_path: Path) -> None:
     assert not [d for d in analyse(agreed).diagnostics if d.rule == "units-doubt"]
 
 
+@pytest.mark.parametrize("units", ["0.01", "0.01004", "0.00996", "cm"])
+def test_a_unit_written_another_way_is_one_unit(units: str, tmp_path: Path) -> None:
+    """An override within 1 % of what the rest read (a rounded `units: 0.0564` for CMU's
+    0.05644...) is the same unit: no units-doubt error (it failed the build at 8e-6 apart)."""
+    for name, spec in (
+        ("a", GaitSpec("a", speed=1.4, duration=1.0)),
+        ("b", GaitSpec("b", speed=1.2, duration=1.0)),
+        ("c", GaitSpec("c", speed=0.9, duration=1.0)),
+    ):
+        _write(tmp_path, generate(spec, meters_per_unit=0.01), name)
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: g\nclips:\n  - path: a.bvh\n  - path: b.bvh\n"
+        f"  - path: c.bvh\n    skeleton: {{units: {units}}}\n"
+    )
+    space = analyse(manifest)
+    assert space.samples[2].clip.measurement.meters_per_unit == pytest.approx(0.01, rel=0.005)
+    assert not [d for d in space.diagnostics if d.rule == "units-doubt"]
+
+
+def test_a_rounded_cmu_unit_on_one_take_is_not_a_second_unit(tmp_path: Path) -> None:
+    """The README's `units: 0.0564` on one entry of CMU takes whose unit is detected."""
+    shared_data("cmu", "131_02.bvh")
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: cmu\nclips:\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/cmu/131_01.bvh', name: a}}\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/cmu/131_02.bvh', name: b}}\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/cmu/131_01.bvh', name: c, range: [3, 5], skeleton: {{units: 0.0564}}}}\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/cmu/131_02.bvh', name: d, range: [2, 6], skeleton: {{units: cm}}}}\n"
+    )
+    doubts = [d for d in analyse(manifest).diagnostics if d.rule == "units-doubt"]
+    assert [d.clips for d in doubts] == [("d",)]  # centimetres on a CMU take still is a second unit
+
+
 def test_manifest_range_auto_values(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("schema_version: 1\nname: g\nclips:\n  - path: a.bvh\n    range: automatic\n")
