@@ -81,6 +81,16 @@ def test_strafes_and_backward_travel(direction: float) -> None:
     assert (features["speed"] < 0) == (abs(direction) > 90.0)
 
 
+@pytest.mark.parametrize("direction", [-90.0, 45.0, 180.0])
+def test_a_clip_that_does_not_travel_has_no_direction(direction: float) -> None:
+    """Drift under 1 mm/s is no travel: direction 0, not the angle of the drift (an in-place run
+    read as a -90 deg strafe); a 2 mm/s creep still has its direction."""
+    still = measure(generate(GaitSpec("still", speed=0.0005, direction=direction)), AUTO)
+    assert still.features["direction"] == 0.0 and still.features["speed"] >= 0.0
+    creep = measure(generate(GaitSpec("creep", speed=0.002, direction=direction)), AUTO)
+    assert creep.features["direction"] == pytest.approx(direction, abs=1.0)
+
+
 def test_z_up_centimetres_detected() -> None:
     clip = generate(GaitSpec("zup", speed=1.4, turn_rate=30.0, duration=1.0), up="z", meters_per_unit=0.01)
     clip.up_axis = None

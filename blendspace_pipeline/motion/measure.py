@@ -38,6 +38,7 @@ from blendspace_pipeline.motion.quaternions import FloatArray
 
 # Below these a clip has no root motion worth placing (a warning, not a silent origin sample).
 IN_PLACE_SPEED = 0.05  # m/s
+NO_TRAVEL_SPEED = 0.001  # m/s: below it a clip's `direction` is 0 (1 mm/s: a slow creep still counts)
 IN_PLACE_TURN_RATE = 3.0  # deg/s
 # `speed` is negative only when travel points this far from the facing (spec.md).
 BACKWARD_DIRECTION = 100.0  # deg
@@ -324,7 +325,9 @@ def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[st
     forward = float(np.sum(steps[:, 0] * cos + steps[:, 1] * sin)) / duration
     lateral = float(np.sum(-steps[:, 0] * sin + steps[:, 1] * cos)) / duration
     ground_speed = float(np.hypot(forward, lateral))
-    direction = float(np.degrees(np.arctan2(lateral, forward))) if ground_speed > 1e-9 else 0.0
+    # A clip that does not travel has no direction of travel: the angle of its drift (an in-place
+    # run's 4e-6 m/s read -90, a strafe) would be a number of noise. 0, as straight ahead.
+    direction = float(np.degrees(np.arctan2(lateral, forward))) if ground_speed >= NO_TRAVEL_SPEED else 0.0
     if direction <= -180.0 + 1e-9:  # the range is (-180, 180]: straight back reads 180
         direction = min(direction + 360.0, 180.0)
     turn = float(np.degrees(heading[-1] - heading[0]))

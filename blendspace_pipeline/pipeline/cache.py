@@ -39,7 +39,8 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # so a developer's or CI's cache never serves results of older code under an unchanged version.
 # 3: detection from the body, sway-free heading; 4: foot contacts and plant phases;
 # 5: readers refuse out-of-range data (frame rate, angles, sizes) that earlier revisions measured;
-# 6: an assumed facing of a track set without hierarchy (Godot) is a detection guess.
+# 6: an assumed facing of a track set without hierarchy (Godot) is a detection guess, and a clip
+# travelling under 1 mm/s has direction 0 (not the angle of its drift).
 MEASUREMENT_REVISION = 6
 
 
