@@ -152,6 +152,88 @@ def test_a_user_s_file_or_folder_where_an_output_goes_is_kept_and_nothing_is_wri
     assert {name: (out / name).read_bytes() for name in before} == before
 
 
+@pytest.mark.parametrize("listed", [True, False])
+def test_a_generated_clip_never_overwrites_a_clip_of_the_user_s(
+    listed: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`output.dir: .` puts the generated clips' folder on the project's `clips/`: an authored
+    clip (listed in the manifest, or not) whose file has the mirror's name was overwritten by the
+    mirror, exit 0. Now exit 2 naming it, the file untouched, nothing written."""
+    manifest = _project(tmp_path / "p")
+    clips = tmp_path / "p" / "clips"
+    authored = clips / "turn_mirror.usda"
+    write_usd_clip(generate(GaitSpec("take2", speed=1.4)), authored, meters_per_unit=1.0, up_axis="y")
+    before = authored.read_bytes()
+    text = manifest.read_text(encoding="utf-8").replace("  - path: clips/*.usda\n", "")
+    listed_clips = (
+        "  - path: clips/*.usda\n"
+        if listed
+        else "".join(f"  - path: clips/{name}.usda\n" for name in ("idle", "walk", "turn"))
+    )
+    manifest.write_text(
+        text.replace("clips:\n", "clips:\n" + listed_clips) + "output: {dir: .}\n", encoding="utf-8"
+    )
+    if listed:  # as another take: its own name, so the mirror keeps `turn_mirror`
+        manifest.write_text(
+            manifest.read_text(encoding="utf-8").replace(
+                "  - path: clips/*.usda\n",
+                "".join(f"  - path: clips/{n}.usda\n" for n in ("idle", "walk", "turn"))
+                + "  - {path: clips/turn_mirror.usda, name: walk_take2}\n",
+            ),
+            encoding="utf-8",
+        )
+    code = main(["build", str(manifest)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert f"({authored})" in err and "never overwritten" in err
+    assert authored.read_bytes() == before
+    assert not (tmp_path / "p" / ".blendspace").exists() or not list(
+        (tmp_path / "p" / ".blendspace").rglob("g-*")
+    )
+    assert not (tmp_path / "p" / "t.blendspace.json").exists()
+
+
+def test_generated_clips_a_build_no_longer_makes_leave_the_clips_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A `--no-fix` build after one that mirrored a clip: the mirror's files leave `OUT/clips/`
+    (engines import every file there); a generated clip the user edited stays (it is theirs)."""
+    out, manifest = tmp_path / "out", _project(tmp_path / "p")
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    made = sorted(p.name for p in (out / "clips").iterdir())
+    assert "turn_mirror.usda" in made
+    code = main(["build", str(manifest), "--out", str(out), "--no-fix"])
+    assert code in (0, 1), capsys.readouterr().err
+    assert not (out / "clips").exists() or not list((out / "clips").iterdir())
+    assert _build(manifest, out, capsys)[0] in (0, 1)  # mirrored again
+    edited = out / "clips" / "turn_mirror.usda"
+    # Saved as a DCC saves (a new file renamed over it): written in place, it would edit the
+    # generation's hard link too, and be the build's file still.
+    tweaked = edited.with_suffix(".tmp")
+    tweaked.write_text(edited.read_text(encoding="utf-8") + "\n# tweaked by hand\n", encoding="utf-8")
+    os.replace(tweaked, edited)
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+    capsys.readouterr()
+    assert edited.read_text(encoding="utf-8").endswith("# tweaked by hand\n")
+
+
+def test_an_older_build_s_generated_clip_in_the_way_is_replaced(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A generated clip written before generation folders (a real file with the provenance record,
+    and no record of the build) is the tool's own: the build replaces it."""
+    out, manifest = tmp_path / "out", _project(tmp_path / "p")
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    mirror = (out / "clips" / "turn_mirror.usda").read_bytes()
+    shutil.rmtree(out / ".blendspace")
+    for name in NAMES:
+        (out / name).unlink()
+    (out / "clips" / "turn_mirror.usda").unlink()
+    (out / "clips" / "turn_mirror.usda").write_bytes(mirror.replace(b"turn", b"turn", 1))  # a real file now
+    assert _build(manifest, out, capsys)[0] in (0, 1)
+    assert (out / "clips" / "turn_mirror.usda").read_bytes() == mirror
+
+
 def test_a_library_that_says_yes_to_a_truncated_png_is_caught(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -476,7 +476,7 @@ def _write_outputs(
         if errors:
             raise errors[min(errors)]
         staged += [Path(f"{space.name}{writers[name][0]}") for name in formats]
-        generation = publish(staging, out_dir, safe_file_stem(space.name), staged)
+        generation = publish(staging, out_dir, safe_file_stem(space.name), staged, input_files(space))
         if generation is not None:
             _write_record(home, generation, inputs_of, previous)
         return document, [out_dir / relative for relative in staged]
@@ -583,17 +583,20 @@ def _symlinks_work(folder: Path) -> bool:
     return True
 
 
-def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> str | None:
+def publish(
+    staging: Path, out_dir: Path, name: str, files: Sequence[Path], sources: Sequence[Path] = ()
+) -> str | None:
     """Make the staged ``files`` the output set of blend space ``name`` in one rename (see above).
-    Returns the generation's folder name (None where files are moved into place, no symlinks)."""
-    _check_targets(out_dir, files)
+    ``sources``: the files the build read, never replaced. Returns the generation's folder name
+    (None where files are moved into place, no symlinks)."""
+    home = out_dir / GENERATIONS / name
+    _check_targets(out_dir, files, home / CURRENT, sources)
     if not _symlinks_work(out_dir):
         for relative in files:
             target = out_dir / relative
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(staging / relative, target)
         return None
-    home = out_dir / GENERATIONS / name
     home.mkdir(parents=True, exist_ok=True)
     generation = f"g-{_content_hash(staging, files)}"
     fresh = not (home / generation).is_dir()
@@ -625,15 +628,20 @@ def publish(staging: Path, out_dir: Path, name: str, files: Sequence[Path]) -> s
     for relative in documents:
         _link(out_dir / relative, home / CURRENT / relative)
     _drop_dangling_links(out_dir, home, wanted)
+    if previous is not None and previous != generation:
+        _drop_old_clips(out_dir, home / previous, wanted, sources)
     for old in home.glob("g-*"):
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
     return generation
 
 
-def _check_targets(out_dir: Path, files: Sequence[Path]) -> None:
+def _check_targets(out_dir: Path, files: Sequence[Path], current: Path, sources: Sequence[Path]) -> None:
     """Refuse, before anything moves, an output whose place holds a folder (never deleted: it is
-    the user's) or whose folder is a file, as the file system would half-way through."""
+    the user's), whose folder is a file, or (a generated clip) a file this tool did not write: a
+    clip of the manifest's (`output.dir: .` puts `clips/` beside the sources) or any other file
+    of the user's. The file system would fail half-way through; a clip would be overwritten."""
+    read = {os.path.abspath(source) for source in sources}
     for relative in files:
         target = out_dir / relative
         if target.is_dir() and not target.is_symlink():
@@ -647,6 +655,52 @@ def _check_targets(out_dir: Path, files: Sequence[Path]) -> None:
                     "a file is where the outputs' folder goes; move or rename it",
                     str(out_dir / folder),
                 )
+        if relative.parent == Path(".") or not target.is_file() or target.is_symlink():
+            continue
+        if os.path.abspath(target) in read or not _generated_here(target, current / relative):
+            raise FileExistsError(
+                errno.EEXIST,
+                "a clip this tool did not generate is where a generated clip goes (it is never "
+                "overwritten); rename it, or build to another folder with --out or output.dir",
+                str(target),
+            )
+
+
+def _generated_here(target: Path, previous: Path) -> bool:
+    """Whether ``target`` is a clip a build generated: the previous generation's (the same file or
+    the same bytes), or any clip carrying a generated clip's provenance record (an earlier build's,
+    an older version's)."""
+    try:
+        if previous.is_file() and (
+            os.path.samefile(target, previous) or filecmp.cmp(target, previous, shallow=False)
+        ):
+            return True
+    except OSError:
+        pass
+    from blendspace_pipeline.readers.provenance import read_provenance
+
+    return read_provenance(target) is not None
+
+
+def _drop_old_clips(out_dir: Path, previous: Path, wanted: set[Path], sources: Sequence[Path]) -> None:
+    """The previous generation's clips that this set does not have (a fix no longer applied, a
+    `--no-fix` build): removed from the clips folder while they are the files it generated there,
+    so engines that import every `clips/*` file do not import clips the space dropped."""
+    folder = previous / "clips"
+    if not folder.is_dir():
+        return
+    read = {os.path.abspath(source) for source in sources}
+    for old in folder.rglob("*"):
+        target = out_dir / old.relative_to(previous)
+        if target in wanted or not old.is_file() or not target.is_file() or target.is_symlink():
+            continue
+        if os.path.abspath(target) in read:
+            continue  # fed back as a source: the user's now
+        try:
+            if os.path.samefile(target, old) or filecmp.cmp(target, old, shallow=False):
+                target.unlink()
+        except OSError:
+            continue  # a build never fails over a file it only meant to tidy
 
 
 def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
