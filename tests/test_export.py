@@ -807,6 +807,24 @@ def test_export_command_out_with_a_trailing_separator_is_a_folder(
     assert [p.name for p in out.iterdir()] == ["loco.tres"]
 
 
+@pytest.mark.parametrize(
+    "engine, name", [("godot", "loco.tres"), ("unity", "loco.controller"), ("unreal", "loco.py")]
+)
+def test_export_command_out_to_a_new_path_without_an_extension_is_a_folder(
+    engine: str, name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--out Assets/Animators` for a folder not made yet (no trailing /) wrote a file called
+    `Animators` that no engine imports; it is the folder, as with the /."""
+    path = _write(make_doc(LAYOUT), tmp_path)
+    out = tmp_path / "Assets" / "Animators"
+    assert main(["export", str(path), "--engine", engine, "--out", str(out)]) == 0
+    assert out.is_dir() and [p.name for p in out.iterdir()] == [name]
+    assert f"wrote {out / name} ({engine})" in capsys.readouterr().out
+    file_name = tmp_path / "Assets" / f"named{Path(name).suffix}"
+    assert main(["export", str(path), "--engine", engine, "--out", str(file_name)]) == 0
+    assert file_name.is_file()  # a path with an extension is the file, as before
+
+
 def test_export_command_turns_write_failures_into_input_errors(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -98,13 +98,14 @@ def _previous(target: Path) -> str | None:
 def output_path(out: str | None, default: Path) -> Path:
     """Where to write: ``out`` as a file, or ``default``'s name inside ``out`` when it is a folder.
 
-    A trailing separator or an existing directory makes ``out`` a folder, created when missing:
-    `--out ex/` must not write a file called ``ex``.
+    A trailing separator, an existing directory, or a new path without a file extension makes
+    ``out`` a folder, created when missing: `--out ex/` (or `--out Assets/Animators` for a folder
+    not made yet) must not write a file called ``ex`` that no engine imports.
     """
     if out is None:
         return default
     folder = Path(out)
-    if out.endswith(("/", os.sep)) or folder.is_dir():
+    if out.endswith(("/", os.sep)) or folder.is_dir() or (not folder.suffix and not folder.exists()):
         if folder.exists() and not folder.is_dir():
             raise InputError(
                 f"cannot write into {out}: {folder} is a file, not a folder",
