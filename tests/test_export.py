@@ -808,7 +808,7 @@ def test_export_command_out_with_a_trailing_separator_is_a_folder(
 
 
 @pytest.mark.parametrize(
-    "engine, name", [("godot", "loco.tres"), ("unity", "loco.controller"), ("unreal", "loco.py")]
+    "engine, name", [("godot", "loco.tres"), ("unity", "loco.controller"), ("unreal", "loco_unreal.py")]
 )
 def test_export_command_out_to_a_new_path_without_an_extension_is_a_folder(
     engine: str, name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
