@@ -10,7 +10,8 @@ from blendspace_pipeline.api import Diagnostic, Rule, SpaceView
 
 class InconsistentFps(Rule):
     """Clips sampled at different rates blend fine in engines but usually reveal a mixed export
-    (a 30 fps clip among 120 fps mocap); generated clips and cadence sync assume one rate.
+    (a 30 fps clip among 120 fps mocap); generated clips and cadence sync assume one rate. A
+    layer's clips are compared with the main set's rate.
     """
 
     slug = "inconsistent-fps"
@@ -20,20 +21,33 @@ class InconsistentFps(Rule):
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
         rates = Counter(round(s.fps, 3) for s in space.samples if not s.generated)
-        if len(rates) < 2:
+        if not rates:
             return
         common = rates.most_common(1)[0][0]
         odd = [s.name for s in space.samples if round(s.fps, 3) != common and not s.generated]
-        yield self.report(
-            f"most clips run at {common:g} fps but {', '.join(odd)} do not",
-            clips=odd,
-            hint="re-export at one frame rate",
-        )
+        if odd:
+            yield self.report(
+                f"most clips run at {common:g} fps but {', '.join(odd)} do not",
+                clips=odd,
+                hint="re-export at one frame rate",
+            )
+        # A layer's clips are blended pose for pose with the main space's, at its rate.
+        for layer in space.layers:
+            off = [s for s in layer.samples if round(s.fps, 3) != common and not s.generated]
+            if off:
+                yield self.report(
+                    f"{layer.kind} layer {layer.name!r}: {', '.join(f'{s.name} ({s.fps:g} fps)' for s in off)} "
+                    f"blend with main clips that run at {common:g} fps",
+                    clips=[s.name for s in off],
+                    hint="re-export the layer's clips at the main space's frame rate",
+                )
 
 
 class InconsistentSkeleton(Rule):
     """Blending needs the same joints in every clip. A clip whose joint names differ from the
     set's usual skeleton cannot be blended with the rest, mirrored against it, or interpolated.
+    A style or beta layer's clips are blended joint by joint with the main space's, so they are
+    held to the main set's skeleton too.
     """
 
     slug = "inconsistent-skeleton"
@@ -43,17 +57,30 @@ class InconsistentSkeleton(Rule):
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
         layouts = Counter(s.joint_names for s in space.samples if s.joint_names)
-        if len(layouts) < 2:
+        if not layouts:
             return
         common = layouts.most_common(1)[0][0]
         for sample in space.samples:
             if sample.joint_names and sample.joint_names != common:
-                missing = sorted(set(common) - set(sample.joint_names))[:5]
-                extra = sorted(set(sample.joint_names) - set(common))[:5]
                 yield self.report(
-                    f"{sample.name} has a different skeleton ({len(sample.joint_names)} joints vs {len(common)}; "
-                    f"missing {missing or '-'}, extra {extra or '-'})",
+                    f"{sample.name} has a different skeleton ({_difference(sample.joint_names, common)})",
                     clips=[sample.name],
                     position=sample.position,
                     hint="retarget the clip onto the set's skeleton before blending",
                 )
+        # A style or beta layer's poses are blended joint by joint with the main space's.
+        for layer in space.layers:
+            for sample in layer.samples:
+                if sample.joint_names and sample.joint_names != common:
+                    yield self.report(
+                        f"{layer.kind} layer {layer.name!r}: {sample.name} has another skeleton than the "
+                        f"main space's clips ({_difference(sample.joint_names, common)})",
+                        clips=[sample.name],
+                        hint="retarget the layer's clip onto the main space's skeleton",
+                    )
+
+
+def _difference(joints: tuple[str, ...], common: tuple[str, ...]) -> str:
+    missing = sorted(set(common) - set(joints))[:5]
+    extra = sorted(set(joints) - set(common))[:5]
+    return f"{len(joints)} joints vs {len(common)}; missing {missing or '-'}, extra {extra or '-'}"

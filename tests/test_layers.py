@@ -117,6 +117,28 @@ def test_style_without_a_backward_clip_and_a_mask_typo(tmp_path: Path) -> None:
     assert rules["mask-joints"].hint == "did you mean 'LeftUpLeg'?"
 
 
+@pytest.mark.parametrize("change", ["namespaced", "extra_joint", "missing_leaf", "fps"])
+def test_a_layer_clip_on_another_rig_or_rate_is_reported(change: str, tmp_path: Path) -> None:
+    """A style clip is blended joint by joint with the main clips: one of another skeleton (or
+    rate) was not reported when the same clip in the main list was."""
+    from blendspace_pipeline.motion.hostile import on_other_skeleton
+
+    manifest = _project(tmp_path)
+    if change == "fps":
+        clip = generate(GaitSpec("limp_fwd", speed=0.9, sway=0.08, fps=60.0))
+    else:
+        clip = on_other_skeleton(generate(STYLE[0]), change)
+    write_usd_clip(clip, tmp_path / "styles" / "limp_fwd.usda", meters_per_unit=1.0, up_axis="y")
+    rule = "inconsistent-fps" if change == "fps" else "inconsistent-skeleton"
+    found = [d for d in analyse(manifest).all_diagnostics() if d.rule == rule]
+    assert [(d.clips, "style layer 'limp'" in d.message) for d in found] == [(("limp_fwd",), True)]
+
+
+def test_layer_clips_of_the_main_rig_and_rate_are_not_reported(tmp_path: Path) -> None:
+    rules = {d.rule for d in analyse(_project(tmp_path)).all_diagnostics()}
+    assert not rules & {"inconsistent-fps", "inconsistent-skeleton"}
+
+
 def test_missing_beta_manifest_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     manifest = _project(tmp_path)
     (tmp_path / "lateral.yaml").unlink()
