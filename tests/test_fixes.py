@@ -269,3 +269,25 @@ def test_a_fix_from_a_minus_y_up_source_is_skipped_not_a_crash(tmp_path: Path) -
     assert walk["features"]["turn_rate"] == pytest.approx(40.0, abs=1.0)
     skipped = [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]
     assert any("-y-up" in d["message"] for d in skipped), skipped
+
+
+def test_an_axis_clip_blocked_by_a_sample_near_the_crossing_says_which_and_how_far(tmp_path: Path) -> None:
+    """The crossing edge's own end 6.7 (normalised) from the crossing point, within too_close
+    (8): the fix is skipped, and the finding names that sample, its distance and the ways out
+    (it said only "a sample already sits within too_close")."""
+    specs = (
+        GaitSpec("idle", duration=2.0),
+        GaitSpec("walk_fwd", speed=1.4),
+        GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1),
+        GaitSpec("turn_in_place_left", turn_rate=150.0, duration=2.0),
+        GaitSpec("turn_in_place_right", turn_rate=-150.0, duration=2.0),
+        GaitSpec("slow_turn_left", speed=0.6, turn_rate=60.0, duration=1.5, stride_length=1.2),
+        GaitSpec(
+            "slow_bwd_turn_left", speed=1.0, direction=180.0, turn_rate=60.0, duration=1.5, stride_length=1.2
+        ),
+    )
+    doc = _build(_project(tmp_path, specs, "fixes: {mirror: false}\n"), tmp_path / "out")
+    [skipped] = [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]
+    assert skipped["message"].startswith("crossing-axis fix not applied: slow_turn_left sits 6.")
+    assert "within too_close (8)" in skipped["message"]
+    assert "lower thresholds.too_close below 6." in skipped["hint"]

@@ -274,8 +274,17 @@ class _Fixer:
         data = diagnostic.fix_data or {}
         axis_index = 0 if data["axis"] == "x" else 1
         point = tuple(float(v) for v in data["point"])  # type: ignore[attr-defined]
-        if self._occupied(space, point):
-            self._skip(diagnostic, "a sample already sits within too_close of the crossing point")
+        near = self._nearest_within_too_close(space, point)
+        if near is not None:
+            sample, distance = near
+            self._skip(
+                diagnostic,
+                f"{sample.name} sits {distance:.3g} (normalised) from the crossing point "
+                f"({point[0]:.3g}, {point[1]:.3g}), within too_close ({self.model.thresholds.too_close:g}): "
+                "a clip there would be too close to it",
+                hint=f"author a clip at the crossing point yourself and accept its too-close warning, "
+                f"move {sample.name}, or lower thresholds.too_close below {distance:.3g}",
+            )
             return False
         pair = _bracketing_axis_clips(space, axis_index, point)
         if pair is None:
@@ -371,11 +380,17 @@ class _Fixer:
                     pairs[other] = joint
         return pairs
 
-    def _occupied(self, space: BlendSpace, point: Sequence[float]) -> bool:
-        """Whether a sample already sits within `too_close` of ``point`` (normalised)."""
-        tau = self.model.thresholds.too_close
+    def _nearest_within_too_close(
+        self, space: BlendSpace, point: Sequence[float]
+    ) -> tuple[Sample, float] | None:
+        """The sample nearest ``point`` and its (normalised) distance, when within `too_close`."""
         target = _normalise(space, point)
-        return any(_distance(_normalise(space, s.position), target) < tau for s in space.samples)
+        found = min(
+            ((s, _distance(_normalise(space, s.position), target)) for s in space.samples),
+            key=lambda pair: pair[1],
+            default=None,
+        )
+        return found if found is not None and found[1] < self.model.thresholds.too_close else None
 
     # Idempotence: building again with a fixed build's generated clips among the sources must add
     # nothing. Mirror and axis clips cure their own diagnostic; a merge or a straightened clip
@@ -431,7 +446,9 @@ class _Fixer:
         )
         return True
 
-    def _skip(self, diagnostic: Diagnostic, why: str) -> None:
+    def _skip(
+        self, diagnostic: Diagnostic, why: str, hint: str = "author the clip at the placeholder instead"
+    ) -> None:
         self.state.skipped.append(
             Diagnostic(
                 rule="fix-skipped",
@@ -440,7 +457,7 @@ class _Fixer:
                 message=f"{diagnostic.rule} fix not applied: {why}",
                 clips=diagnostic.clips,
                 position=diagnostic.position,
-                hint="author the clip at the placeholder instead",
+                hint=hint,
                 path=diagnostic.path,
                 line=diagnostic.line,
                 column=diagnostic.column,
