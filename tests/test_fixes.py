@@ -291,3 +291,27 @@ def test_an_axis_clip_blocked_by_a_sample_near_the_crossing_says_which_and_how_f
     assert skipped["message"].startswith("crossing-axis fix not applied: slow_turn_left sits 6.")
     assert "within too_close (8)" in skipped["message"]
     assert "lower thresholds.too_close below 6." in skipped["hint"]
+
+
+def test_a_mirror_is_of_the_merged_clip_not_of_a_take_the_merge_removed(tmp_path: Path) -> None:
+    specs = (
+        GaitSpec("idle", duration=2.0),
+        GaitSpec("walk_fwd", speed=1.4),
+        GaitSpec("run_fwd", speed=4.0, duration=1.0, stride_length=2.0),
+        GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1),
+        GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
+        GaitSpec("turn_in_place_right", turn_rate=-90.0, duration=2.0),
+        GaitSpec("walk_turn_left", speed=1.4, turn_rate=150.0, duration=1.2, stride_length=1.68),
+        GaitSpec("run_turn_left", speed=4.0, turn_rate=150.0, duration=1.2, stride_length=2.4),
+        GaitSpec("mid_a", speed=2.5, turn_rate=80.0, duration=1.0, stride_length=2.5),
+        GaitSpec("mid_b", speed=2.6, turn_rate=86.0, duration=1.0, stride_length=2.6),
+    )
+    fixes = "fixes: {mirror: true, axis_clips: true, too_close: merge}\n"
+    doc = _build(_project(tmp_path, specs, fixes), tmp_path / "out")
+    made = {s["name"]: s for s in doc["samples"] if s["generated"]}  # type: ignore[attr-defined]
+    assert "merged_mid_a_mid_b" in made
+    mirrors = [s for s in made.values() if s["fix"] == "missing-opposite"]
+    assert "merged_mid_a_mid_b_mirror" in [s["name"] for s in mirrors]
+    assert not [s for s in mirrors if s["name"].startswith(("mid_a", "mid_b"))]
+    merged, mirror = made["merged_mid_a_mid_b"]["position"], made["merged_mid_a_mid_b_mirror"]["position"]
+    assert mirror == [-merged[0], merged[1]]

@@ -45,8 +45,10 @@ from blendspace_pipeline.space.hull import convex_hull, hull_coverage
 from blendspace_pipeline.space.model import BlendSpace, MeasuredClip, Sample, assemble
 
 MAX_ROUNDS = 6
-# Fix kinds in the order they are applied.
-ORDER = ("mirror", "axis-clip", "too-close", "straighten")
+# Fix kinds in the order they are applied: the set is made right (merged, straightened) before it
+# is completed (mirrored, axis clips), so a mirror is of a clip the space keeps (mirrors first made
+# `mid_a_mirror` of a take the merge then took out, beside the merged clip).
+ORDER = ("too-close", "straighten", "mirror", "axis-clip")
 # At most this many fixes are tried in one build (each costs a re-analysis of the space).
 MAX_ATTEMPTS = 64
 
