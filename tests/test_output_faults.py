@@ -205,16 +205,62 @@ def test_generated_clips_a_build_no_longer_makes_leave_the_clips_folder(
     code = main(["build", str(manifest), "--out", str(out), "--no-fix"])
     assert code in (0, 1), capsys.readouterr().err
     assert not (out / "clips").exists() or not list((out / "clips").iterdir())
-    assert _build(manifest, out, capsys)[0] in (0, 1)  # mirrored again
-    edited = out / "clips" / "turn_mirror.usda"
-    # Saved as a DCC saves (a new file renamed over it): written in place, it would edit the
-    # generation's hard link too, and be the build's file still.
-    tweaked = edited.with_suffix(".tmp")
-    tweaked.write_text(edited.read_text(encoding="utf-8") + "\n# tweaked by hand\n", encoding="utf-8")
-    os.replace(tweaked, edited)
+    for in_place in (False, True):
+        assert _build(manifest, out, capsys)[0] in (0, 1)  # mirrored again
+        edited = out / "clips" / "turn_mirror.usda"
+        if in_place:  # a text editor, a script: the generation's hard link changes with it
+            with edited.open("a", encoding="utf-8") as stream:
+                stream.write("\n# tweaked by hand\n")
+        else:  # saved as a DCC saves: a new file renamed over it
+            tweaked = edited.with_suffix(".tmp")
+            tweaked.write_text(edited.read_text(encoding="utf-8") + "\n# tweaked by hand\n", encoding="utf-8")
+            os.replace(tweaked, edited)
+        assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+        capsys.readouterr()
+        assert edited.read_text(encoding="utf-8").endswith("# tweaked by hand\n")
+        edited.unlink()
+
+
+def test_a_generated_clip_the_build_reads_as_a_source_is_never_removed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`output.dir: .` and a `clips/*` glob adopt the mirror as a source; the manifest reaches it
+    through a symlinked folder (or another letter case on macOS): a `--no-fix` build read it, and
+    must not delete it."""
+    project = tmp_path / "p"
+    manifest = _project(project)
+    manifest.write_text(manifest.read_text(encoding="utf-8") + "output: {dir: .}\n", encoding="utf-8")
+    assert main(["build", str(manifest)]) in (0, 1)
+    mirror = project / "clips" / "turn_mirror.usda"
+    assert mirror.is_file()
+    (project / "Clips").symlink_to("clips")
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8").replace("path: clips/", "path: Clips/"), encoding="utf-8"
+    )
+    assert main(["build", str(manifest), "--no-fix"]) in (0, 1)
+    capsys.readouterr()
+    assert mirror.is_file()
+    doc = json.loads((project / "t.blendspace.json").read_text(encoding="utf-8"))
+    assert "turn_mirror" in [s["name"] for s in doc["samples"]]
+
+
+def test_a_clip_another_blend_space_published_is_not_removed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two manifests share `build/clips/` and both mirror the same take (the same bytes): one of
+    them built `--no-fix` must not remove the clip the other's JSON names."""
+    project = tmp_path / "p"
+    manifest = _project(project)
+    other = project / "u.yaml"
+    other.write_text(manifest.read_text(encoding="utf-8").replace("name: t", "name: u"), encoding="utf-8")
+    out = project / "build"
+    for built in (manifest, other):
+        assert main(["build", str(built), "--out", str(out)]) in (0, 1)
     assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
     capsys.readouterr()
-    assert edited.read_text(encoding="utf-8").endswith("# tweaked by hand\n")
+    doc = json.loads((out / "u.blendspace.json").read_text(encoding="utf-8"))
+    named = [s["source"] for s in doc["samples"] if s["generated"]]
+    assert named and all((out / source).is_file() for source in named)
 
 
 def test_an_older_build_s_generated_clip_in_the_way_is_replaced(
@@ -298,8 +344,11 @@ def test_a_failed_rename_leaves_the_previous_set(
 
     monkeypatch.setattr(outputs.os, "replace", failing)
     _project(tmp_path / "p", 50)
+    generations = sorted(p.name for p in (out / ".blendspace" / "t").iterdir())
     code, err = _build(manifest, out, capsys)
     assert code == 2 and "Input/output error" in err, err
+    # Nothing of the failed build left in the blend space's folder: no generation, no switch link.
+    assert sorted(p.name for p in (out / ".blendspace" / "t").iterdir()) == generations
     # Not one new document among the old ones (generated clips are placed just before the switch).
     assert _outputs(out, clips_too=which == "staging") == _outputs_of(before, clips_too=which == "staging")
     _consistent(out)

@@ -607,22 +607,26 @@ def publish(
     documents = [relative for relative in files if relative.parent == Path(".")]
     pointer = home / CURRENT
     previous = os.readlink(pointer) if pointer.is_symlink() else None
+    switch = home / f".{CURRENT}-{os.getpid()}"
     try:
         # Generated clips are real files (hard links into the generation, else copies): engines
         # import them as assets (Unity does not support symlinked assets) and exporters resolve
         # their paths, which must not lead into a generation folder that the next build deletes.
         # They are placed before the switch, so the new documents never name a clip not there yet.
-        for relative in files:
-            if relative not in documents:
-                _place(home / generation / relative, out_dir / relative)
+        clips = [relative for relative in files if relative not in documents]
+        for relative in clips:
+            _place(home / generation / relative, out_dir / relative)
+        if fresh:
+            placed = {r.as_posix(): file_sha256(home / generation / r) for r in clips}
+            write_atomic(home / generation / PLACED, json.dumps(placed, sort_keys=True))
         if previous != generation:
-            switch = home / f".{CURRENT}-{os.getpid()}"
             switch.unlink(missing_ok=True)
             os.symlink(generation, switch)
             os.replace(switch, pointer)  # the one rename that swaps the whole set
     except BaseException:
         if fresh and previous != generation:  # not switched to: no build will ever use it
             shutil.rmtree(home / generation, ignore_errors=True)
+            switch.unlink(missing_ok=True)
         raise
     wanted = {out_dir / relative for relative in files}
     for relative in documents:
@@ -641,7 +645,7 @@ def _check_targets(out_dir: Path, files: Sequence[Path], current: Path, sources:
     the user's), whose folder is a file, or (a generated clip) a file this tool did not write: a
     clip of the manifest's (`output.dir: .` puts `clips/` beside the sources) or any other file
     of the user's. The file system would fail half-way through; a clip would be overwritten."""
-    read = {os.path.abspath(source) for source in sources}
+    read = _identities(sources)
     for relative in files:
         target = out_dir / relative
         if target.is_dir() and not target.is_symlink():
@@ -657,13 +661,27 @@ def _check_targets(out_dir: Path, files: Sequence[Path], current: Path, sources:
                 )
         if relative.parent == Path(".") or not target.is_file() or target.is_symlink():
             continue
-        if os.path.abspath(target) in read or not _generated_here(target, current / relative):
+        if _identity(target) in read or not _generated_here(target, current / relative):
             raise FileExistsError(
                 errno.EEXIST,
                 "a clip this tool did not generate is where a generated clip goes (it is never "
                 "overwritten); rename it, or build to another folder with --out or output.dir",
                 str(target),
             )
+
+
+def _identity(path: Path | str) -> tuple[int, int] | None:
+    """(device, inode) of the file ``path`` names (through links, in any spelling: a symlinked
+    folder, another letter case on macOS and Windows); None when there is none."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    return info.st_dev, info.st_ino
+
+
+def _identities(paths: Sequence[Path]) -> set[tuple[int, int] | None]:
+    return {_identity(path) for path in paths} - {None}
 
 
 def _generated_here(target: Path, previous: Path) -> bool:
@@ -682,25 +700,34 @@ def _generated_here(target: Path, previous: Path) -> bool:
     return read_provenance(target) is not None
 
 
+# In a generation folder: the SHA-256 of each clip as it was placed in the output folder. The
+# placed clip is a hard link to the generation's file, so an edit in place changes both; this
+# record is what tells the next build that the clip is no longer the one it placed.
+PLACED = ".placed.json"
+
+
 def _drop_old_clips(out_dir: Path, previous: Path, wanted: set[Path], sources: Sequence[Path]) -> None:
     """The previous generation's clips that this set does not have (a fix no longer applied, a
-    `--no-fix` build): removed from the clips folder while they are the files it generated there,
-    so engines that import every `clips/*` file do not import clips the space dropped."""
-    folder = previous / "clips"
-    if not folder.is_dir():
+    `--no-fix` build): removed from the clips folder while they are exactly what it placed there
+    (the same file, with the bytes it had then), so engines that import every `clips/*` file do not
+    import clips the space dropped. Kept: a clip the build read as a source, one another blend
+    space published over it, one edited since (in place or saved anew)."""
+    try:
+        placed = json.loads((previous / PLACED).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return  # no record of what it placed (an older generation): nothing is known to be ours
+    if not isinstance(placed, dict):
         return
-    read = {os.path.abspath(source) for source in sources}
-    for old in folder.rglob("*"):
-        target = out_dir / old.relative_to(previous)
-        if target in wanted or not old.is_file() or not target.is_file() or target.is_symlink():
+    read = _identities(sources)
+    for relative, digest in sorted(placed.items()):
+        target = out_dir / relative
+        if target in wanted or target.is_symlink() or _identity(target) in read:
             continue
-        if os.path.abspath(target) in read:
-            continue  # fed back as a source: the user's now
         try:
-            if os.path.samefile(target, old) or filecmp.cmp(target, old, shallow=False):
+            if os.path.samefile(target, previous / relative) and file_sha256(target) == digest:
                 target.unlink()
         except OSError:
-            continue  # a build never fails over a file it only meant to tidy
+            continue  # gone already, or not ours: a build never fails over a file it meant to tidy
 
 
 def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:
