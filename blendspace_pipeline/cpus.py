@@ -13,6 +13,7 @@ import math
 import os
 import re
 import sys
+from collections.abc import Mapping, MutableMapping
 from pathlib import Path
 
 # `--jobs`' default when the option is not given: a number or "auto" (a CI job sets it once for
@@ -20,7 +21,7 @@ from pathlib import Path
 JOBS_VARIABLE = "BLENDSPACE_JOBS"
 
 
-def fork_safe_usd() -> None:
+def fork_safe_usd(env: MutableMapping[str, str] = os.environ) -> None:
     """Keep usd-core from starting its TBB worker threads in this command's process.
 
     The command forks workers (measuring, foot-skate) and writers after it may have read or written
@@ -30,15 +31,15 @@ def fork_safe_usd() -> None:
     costs nothing here: a clip's stage is read serially anyway. Set before usd-core loads; a value
     the user set is kept (and the banner usd-core prints for a changed setting is not shown). Only
     the command line does this: the Python API never changes its host's USD (Maya, Houdini)."""
-    os.environ.setdefault("PXR_WORK_THREAD_LIMIT", "1")
-    os.environ.setdefault("TF_ENV_SETTING_ALERTS_ENABLED", "0")
+    env.setdefault("PXR_WORK_THREAD_LIMIT", "1")
+    env.setdefault("TF_ENV_SETTING_ALERTS_ENABLED", "0")
 
 
 # What OpenBLAS (numpy's and scipy's) reads for its thread count, in the order it reads them.
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
 
 
-def one_blas_thread() -> None:
+def one_blas_thread(env: MutableMapping[str, str] = os.environ) -> None:
     """Run numpy's and scipy's BLAS in the calling thread only, in this command's processes.
 
     The command's parallelism is processes (`--jobs`); its matrices are small (a 3x3 fit, a
@@ -49,15 +50,27 @@ def one_blas_thread() -> None:
     workers beside it (perf on a cold 1,000-clip `--jobs 2` build: 1.2 % of all CPU in
     `blas_thread_server`). Set before numpy loads; a thread count the user set (for OpenBLAS or
     OpenMP) is kept. Only the command line does this, as with `fork_safe_usd`."""
-    if not any(name in os.environ for name in BLAS_THREAD_VARIABLES):
-        os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    if not any(name in env for name in BLAS_THREAD_VARIABLES):
+        env["OPENBLAS_NUM_THREADS"] = "1"
 
 
-def own_process() -> None:
+def own_process(env: MutableMapping[str, str] = os.environ) -> None:
     """The thread settings of a process the command owns (the command line's, the build server's):
     see `fork_safe_usd` and `one_blas_thread`. Before usd-core and numpy load."""
-    fork_safe_usd()
-    one_blas_thread()
+    fork_safe_usd(env)
+    one_blas_thread(env)
+
+
+THREAD_VARIABLES = ("PXR_WORK_THREAD_LIMIT", *BLAS_THREAD_VARIABLES)
+
+
+def thread_settings(env: Mapping[str, str]) -> dict[str, str]:
+    """The thread counts a command started with environment ``env`` computes with (`own_process`
+    applied to it). usd-core and BLAS fix theirs when they load, so the build server serves a
+    command only when the caller's settings are the server's."""
+    applied = {name: env[name] for name in THREAD_VARIABLES if name in env}
+    own_process(applied)
+    return {name: applied[name] for name in THREAD_VARIABLES if name in applied}
 
 
 def auto_jobs() -> int:

@@ -130,9 +130,28 @@ def test_a_check_runs_again_when_the_code_that_runs_it_moved(
     monkeypatch.setattr(sys, "path", [*sys.path, str(packages)])  # a package folder appears
     assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 2
     assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 2  # stamped again
-    (packages / "studio_tool.py").write_text("", encoding="utf-8")  # something installed there
-    os.utime(packages, ns=(1, 1))  # its folder's mtime moved (on any clock granularity)
+    (packages / "studio_tool-1.0.dist-info").mkdir()  # a package installed there
     assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 3
+    (packages / "studio_tool-1.0.dist-info").rename(packages / "studio_tool-1.1.dist-info")  # upgraded
+    assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 4
+    (packages / "notes.txt").write_text("", encoding="utf-8")  # anything else in the folder: no matter
+    assert _run(["check", str(manifest)], capsys) == first and counter.analyses == 4
+
+
+def test_a_project_folder_on_sys_path_that_the_build_writes_to_still_replays(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`PYTHONPATH=.` (rule plugins named by module) with `output.dir: .`: every build creates and
+    removes its staging folder there, so the folder's mtime always moved and no build replayed."""
+    manifest = _project(tmp_path)
+    text = manifest.read_text(encoding="utf-8").replace(
+        "output: {formats: [json, png]}", "output: {formats: [json, png], dir: .}"
+    )
+    manifest.write_text(text, encoding="utf-8")
+    counter = Counter(monkeypatch)
+    monkeypatch.setattr(sys, "path", [*sys.path, str(tmp_path)])
+    first = _run(["build", str(manifest)], capsys)
+    assert _run(["build", str(manifest)], capsys) == first and counter.analyses == 1
 
 
 def test_bad_input_is_never_stamped(

@@ -295,7 +295,8 @@ SKELETON_CHANGES = ("namespaced", "extra_joint", "missing_leaf", "reparented")
 
 def on_other_skeleton(clip: Clip, change: str) -> Clip:
     """``clip``'s motion on a skeleton changed as ``change`` (one of `SKELETON_CHANGES`) says; the
-    hips and legs keep their names and motion, so it still measures as ``clip`` does."""
+    hips and legs keep their motion (and, but for `namespaced`, their names), so it still measures
+    as ``clip`` does."""
     skeleton = clip.skeleton
     names, parents = list(skeleton.names), list(skeleton.parents)
     rest_t, rest_r = skeleton.rest_translations, skeleton.rest_rotations

@@ -154,7 +154,7 @@ def _play_point(
     clips = [prepared[i] for i in indices]
     ready = [c for c in clips if c is not None]
     if len(ready) < len(clips) or not all(ready[0].clip.skeleton.same_layout(c.clip.skeleton) for c in ready):
-        return None  # different joints: no engine blends them (`inconsistent-skeleton` says so)
+        return None  # other joint names or hierarchy: no engine blends them (see `inconsistent-skeleton`)
     played = play(ready, weights, rates, settings, fps=SKATE_FPS)
     return played.foot_sliding
 
@@ -311,7 +311,8 @@ def _play_all(
         for index in rest:
             values[index] = here(index)
         return values
-    # Consecutive points (of one triangle, mostly) go to one worker, which reads their clips once.
+    # Chunks of consecutive points (of one triangle, mostly): a worker prepares a chunk's clips once
+    # (a triangle split between chunks is read by both workers: 1-2 % more reads on 1,000 clips).
     chunks = [
         [points[i][2:5] for i in rest[first:last]] for first, last in guided_chunks(len(rest), jobs, 16)
     ]

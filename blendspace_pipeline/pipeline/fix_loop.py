@@ -1,7 +1,7 @@
 """The fix loop: check → bake new clips → re-measure, re-place, re-triangulate → check again.
 
 Rules only describe fixes (`Diagnostic.fix` and `fix_data`); this module applies them, kind by
-kind in a fixed order (mirror, then axis clips, then too-close, then straighten) because each
+kind in a fixed order (too-close, then straighten, then mirror, then axis clips) because each
 kind changes the triangulation the next one looks at. Every generated clip is real animation
 made by `clip_ops` from the source clips and measured like any other clip, so it lands where its
 features put it, not where the fix wished it to be. Sources are never modified or deleted: new

@@ -63,8 +63,8 @@ RESULT_VARIABLES = (
 def invocation_key(command: str, manifests: Sequence[Path], options: dict[str, object]) -> str:
     """What makes two runs the same: the command, its manifests and options, where it runs, and
     the code that runs it (an edited checkout of the tool under the same version, a package
-    installed or removed: `server.address.fingerprint`, ~1 ms of stat calls)."""
-    from blendspace_pipeline.server.address import fingerprint
+    installed, upgraded or removed: `server.address.installed_fingerprint`, ~1-2 ms)."""
+    from blendspace_pipeline.server.address import installed_fingerprint
 
     described = {
         "command": command,
@@ -74,7 +74,7 @@ def invocation_key(command: str, manifests: Sequence[Path], options: dict[str, o
         "environment": {name: os.environ.get(name, "") for name in RESULT_VARIABLES},
         "cwd": os.getcwd(),
         "version": __version__,
-        "code": fingerprint(),
+        "code": installed_fingerprint(),
         "revision": MEASUREMENT_REVISION,
         "stamp": STAMP_VERSION,
     }

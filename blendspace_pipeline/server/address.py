@@ -105,9 +105,7 @@ def _walk(root: Path, digest: hashlib._Hash) -> None:
 def fingerprint() -> str:
     """Identity of the code a command would run here: installed sources, interpreter, sys.path."""
     digest = hashlib.sha256(f"{sys.executable}\0{sys.version}\0".encode())
-    # sys.path[0] is where the script lies (the venv's bin for `blendspace`, the working folder for
-    # `python -m`): it differs between a client and the server without changing what is imported.
-    for entry in sys.path if sys.flags.safe_path else sys.path[1:]:
+    for entry in _imported_path():
         try:
             moved = os.stat(entry or ".").st_mtime_ns
         except OSError:
@@ -116,3 +114,30 @@ def fingerprint() -> str:
     for root in _code_roots():
         _walk(root, digest)
     return digest.hexdigest()
+
+
+def installed_fingerprint() -> str:
+    """Identity of the code a build runs, for its stamp (`pipeline.stamp`): the tool's sources, the
+    interpreter, and per `sys.path` folder the distributions installed there (their
+    `*.dist-info`/`*.egg-info` names carry the versions). Unlike `fingerprint` it leaves out the
+    folders' modification times: a project folder on `PYTHONPATH` (for `plugins:` by module name)
+    that is also the build's output folder changes at every build, and a build would never replay."""
+    digest = hashlib.sha256(f"{sys.executable}\0{sys.version}\0".encode())
+    for entry in _imported_path():
+        digest.update(f"{entry}\n".encode())
+        try:
+            names = sorted(
+                e.name for e in os.scandir(entry or ".") if e.name.endswith((".dist-info", ".egg-info"))
+            )
+        except OSError:
+            names = []
+        digest.update("\0".join(names).encode())
+    for root in _code_roots():
+        _walk(root, digest)
+    return digest.hexdigest()
+
+
+def _imported_path() -> list[str]:
+    # sys.path[0] is where the script lies (the venv's bin for `blendspace`, the working folder for
+    # `python -m`): it differs between a client and the server without changing what is imported.
+    return sys.path if sys.flags.safe_path else sys.path[1:]

@@ -34,6 +34,7 @@ import threading
 import time
 from typing import Any
 
+from blendspace_pipeline.cpus import own_process, thread_settings
 from blendspace_pipeline.server.address import fingerprint, private_problem, server_dir, socket_path
 from blendspace_pipeline.server.client import INTERRUPT
 
@@ -89,6 +90,7 @@ class Server:
         self.idle_timeout = idle_timeout
         self.imported_env = imported_env
         self.fingerprint = fingerprint()
+        self.threads = thread_settings(os.environ)  # fixed in this process since usd-core and numpy loaded
         self.started = time.time()
         self.served = 0
         self.stale = False  # set when the installed code moved: the server starts again, fresh
@@ -166,6 +168,10 @@ class Server:
             if request.get("fingerprint") != self.fingerprint:
                 _reply(conn, {"accepted": False, "why": "the caller's interpreter or sys.path differs"})
                 return True
+            if thread_settings(request.get("env") or {}) != self.threads:
+                why = "the caller's thread settings (PXR_WORK_THREAD_LIMIT, OPENBLAS_NUM_THREADS, ...) differ"
+                _reply(conn, {"accepted": False, "why": why})
+                return True
             try:
                 pid = os.fork()
             except OSError as error:  # out of memory or processes: the caller runs it itself
@@ -240,6 +246,7 @@ def _run_command(
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
+        own_process()  # as in the caller's own process: the processes the command starts inherit them
         for key, value in imported_env.items():
             os.environ.setdefault(key, value)
         if hasattr(time, "tzset"):
@@ -326,8 +333,6 @@ def _flush() -> None:
 
 def serve(idle_timeout: float = DEFAULT_IDLE_TIMEOUT) -> int:
     """Preload, listen and answer until stopped; 0 on a clean stop."""
-    from blendspace_pipeline.cpus import own_process
-
     # As a command's own process does (`blendspace server start` has set them already; a daemon
     # started some other way gets them too): every served command is forked from here.
     own_process()
