@@ -132,6 +132,8 @@ def test_a_layer_clip_on_another_rig_or_rate_is_reported(change: str, tmp_path: 
     rule = "inconsistent-fps" if change == "fps" else "inconsistent-skeleton"
     found = [d for d in analyse(manifest).all_diagnostics() if d.rule == rule]
     assert [(d.clips, "style layer 'limp'" in d.message) for d in found] == [(("limp_fwd",), True)]
+    layers_line = manifest.read_text(encoding="utf-8").splitlines().index("layers:") + 1
+    assert found[0].line == layers_line  # at the layers (it was at `clips:`)
 
 
 def test_layer_clips_of_the_main_rig_and_rate_are_not_reported(tmp_path: Path) -> None:
