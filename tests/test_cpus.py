@@ -270,6 +270,24 @@ def test_a_default_build_writes_what_one_process_writes(tmp_path: Path) -> None:
         assert (tmp_path / "default" / name).read_bytes() == (tmp_path / "one" / name).read_bytes(), name
 
 
+def _check_in_its_own_process(
+    manifest: Path, plugins: Path, without: tuple[str, ...], extra: dict[str, str]
+) -> subprocess.CompletedProcess[str]:
+    """`blendspace check` in a process of its own with the rule plugins in ``plugins`` and no
+    cache, the variables ``without`` left out of this environment and ``extra`` added."""
+    env = {k: v for k, v in os.environ.items() if k not in without}
+    env.update({"BLENDSPACE_RULE_PATH": str(plugins), "BLENDSPACE_CACHE_DIR": "off", **extra})
+    done = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest), "--jobs", "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode in (0, 1), done.stderr
+    return done
+
+
 def _project_with_plugins(tmp_path: Path, suffix: str) -> tuple[Path, Path]:
     """Three clips of the tidy set as ``suffix`` files, their manifest, and an empty folder for a
     rule plugin that reports what the command's process looks like."""
@@ -313,22 +331,8 @@ def test_a_command_reads_usd_without_tbb_threads_and_says_nothing_about_it(
         "        return []\n",
         encoding="utf-8",
     )
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if k not in ("PXR_WORK_THREAD_LIMIT", "TF_ENV_SETTING_ALERTS_ENABLED")
-    }
-    env.update({"BLENDSPACE_RULE_PATH": str(plugins), "BLENDSPACE_CACHE_DIR": "off"})
-    if given is not None:
-        env["PXR_WORK_THREAD_LIMIT"] = given
-    done = subprocess.run(
-        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest), "--jobs", "1"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert done.returncode in (0, 1), done.stderr
+    usd = ("PXR_WORK_THREAD_LIMIT", "TF_ENV_SETTING_ALERTS_ENABLED")
+    done = _check_in_its_own_process(manifest, plugins, usd, {} if given is None else {usd[0]: given})
     assert seen.read_text(encoding="utf-8") == (given or "1")
     if given is None:
         assert "PXR_WORK_THREAD_LIMIT" not in done.stderr and "overridden" not in done.stderr
@@ -360,17 +364,8 @@ def test_a_command_runs_blas_in_its_own_thread(given: dict[str, str] | None, tmp
         "        return []\n",
         encoding="utf-8",
     )
-    names = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-    env = {k: v for k, v in os.environ.items() if k not in names}
-    env.update({"BLENDSPACE_RULE_PATH": str(plugins), "BLENDSPACE_CACHE_DIR": "off", **(given or {})})
-    done = subprocess.run(
-        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest), "--jobs", "1"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert done.returncode in (0, 1), done.stderr
+    blas = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    _check_in_its_own_process(manifest, plugins, blas, given or {})
     found = json.loads(seen.read_text(encoding="utf-8"))
     if given is None:
         assert found == {"native": 0, "env": {"OPENBLAS_NUM_THREADS": "1"}}
