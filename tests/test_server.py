@@ -103,25 +103,26 @@ def test_a_served_build_writes_what_a_local_build_writes(server: dict[str, str],
     assert any((tmp_path / "cache").rglob("*"))
 
 
-def test_a_caller_with_other_thread_settings_runs_its_command_itself(
-    server: dict[str, str], tmp_path: Path
-) -> None:
+def test_a_caller_with_other_thread_settings_runs_its_command_itself(tmp_path: Path) -> None:
     """usd-core and BLAS fix their thread counts when they load, in the server: a caller that set
-    its own (`OPENBLAS_NUM_THREADS=2`) would get the server's. Its command runs in its own process."""
+    its own (`OPENBLAS_NUM_THREADS=2`) would get the server's. Its command runs in its own process.
+    The server here starts without any thread setting (the suite's own environment may hold some:
+    bpy sets OpenMP's when it loads), so the defaults are its settings."""
     from blendspace_pipeline.cpus import THREAD_VARIABLES
 
-    manifest = _project(tmp_path)
-    plain = {k: v for k, v in server.items() if k not in THREAD_VARIABLES}
-    assert _blendspace("check", str(manifest), env=plain).returncode in (0, 1)
-    assert _status(server)["served"] == 1  # no setting: the defaults, which are the server's
-    for name, value in (
-        ("OPENBLAS_NUM_THREADS", "2"),
-        ("OMP_NUM_THREADS", "2"),
-        ("PXR_WORK_THREAD_LIMIT", "2"),
-    ):
-        done = _blendspace("check", str(manifest), env={**plain, name: value})
-        assert done.returncode in (0, 1), done.stderr
-        assert _status(server)["served"] == 1, name
+    manifest = _project(tmp_path / "p")
+    plain = {k: v for k, v in _env(tmp_path / "srv", tmp_path / "cache").items() if k not in THREAD_VARIABLES}
+    started = _blendspace("server", "start", "--idle-timeout", "600", env=plain)
+    assert started.returncode == 0, started.stderr
+    try:
+        assert _blendspace("check", str(manifest), env=plain).returncode in (0, 1)
+        assert _status(plain)["served"] == 1  # type: ignore[index]
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "PXR_WORK_THREAD_LIMIT"):
+            done = _blendspace("check", str(manifest), env={**plain, name: "2"})
+            assert done.returncode in (0, 1), done.stderr
+            assert _status(plain)["served"] == 1, name  # type: ignore[index]
+    finally:
+        assert _blendspace("server", "stop", env=plain).returncode == 0
 
 
 def test_a_served_command_keeps_the_exit_code_and_error_format(
