@@ -107,7 +107,8 @@ def test_a_caller_with_other_thread_settings_runs_its_command_itself(tmp_path: P
     """usd-core and BLAS fix their thread counts when they load, in the server: a caller that set
     its own (`OPENBLAS_NUM_THREADS=2`) would get the server's. Its command runs in its own process.
     The server here starts without any thread setting (the suite's own environment may hold some:
-    bpy sets OpenMP's when it loads), so the defaults are its settings."""
+    a Dask nanny started in the test process sets OMP/MKL/OPENBLAS_NUM_THREADS in its environment,
+    `distributed.nanny.pre-spawn-environ`), so the defaults are its settings."""
     from blendspace_pipeline.cpus import THREAD_VARIABLES
 
     manifest = _project(tmp_path / "p")
