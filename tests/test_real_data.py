@@ -183,3 +183,29 @@ def test_cmu_ranges_of_one_take_share_the_estimated_unit(tmp_path: Path) -> None
     durations = sorted(s.clip.measurement.features["duration"] for s in space.samples)
     # `range:` ends are included: [2, 4] at 120 fps lasts 2 s, not 2 s less a frame.
     assert durations == pytest.approx([1.5, 2.0, 2.0, 2.0], abs=1e-3)
+
+
+def test_a_trimmed_clip_reports_the_range_it_measured(tmp_path: Path) -> None:
+    """`clip.range` is the range used: the Godot walk, resampled at 30.4 fps, measures the frames
+    0.263-0.987 s of `range: [0.25, 1.0]`, and its duration is theirs. A CMU take at 120 fps
+    trimmed between frames says the frames it measured too."""
+    shared_data("godot-tps-demo", "walking_nogun-cycle.tres")
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: trims\nclips:\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/godot-tps-demo/walking_nogun-cycle.tres', range: [0.25, 1.0], name: walk}}\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/godot-tps-demo/running_nogun-cycle.tres', name: run}}\n"
+        f"  - {{path: '{SHARED_DATA.as_posix()}/cmu/131_01.bvh', range: [2.0037, 4.0011], name: cmu}}\n"
+        "skeleton: {forward: +z}\n"
+    )
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+    clips = {s["name"]: s["clip"] for s in json.loads((out / "trims.blendspace.json").read_text())["samples"]}
+    walk = clips["walk"]
+    assert walk["range"] == pytest.approx([10 / 38 * 1.0, 37.5 / 38], abs=0.002)  # 0.263, 0.987
+    for name in ("walk", "cmu"):
+        first, last = clips[name]["range"]
+        assert last - first == pytest.approx(clips[name]["duration"], abs=1e-5)
+    fps = clips["cmu"]["fps"]  # 1 / 0.008333 s
+    assert clips["cmu"]["range"] == pytest.approx([240 / fps, 480 / fps], abs=1e-5)  # nearest frames
+    assert clips["run"]["range"] is None  # not trimmed

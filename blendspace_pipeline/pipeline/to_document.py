@@ -83,6 +83,16 @@ def _sample_doc(sample: Sample, out_dir: Path, *, events: bool = True) -> Sample
     )
 
 
+def _used_range(clip: MeasuredClip) -> list[float] | None:
+    """The seconds of the file the clip's numbers come from, when its entry trims it: the frames
+    measured, not the range asked for (a Godot clip resampled at 30.4 fps used 0.263-0.987 s of
+    `range: [0.25, 1.0]`; its duration and speeds are of those frames)."""
+    if clip.time_range is None:
+        return None
+    used = clip.measurement.range_used
+    return [float(v) for v in (used if used is not None else clip.time_range)]
+
+
 def _markers(contacts: dict[str, list[list[float]]] | None, duration: float) -> list[MarkerDoc] | None:
     """Foot-down events of the measured contacts, the same seconds as `contacts`."""
     if contacts is None:
@@ -103,7 +113,7 @@ def _clip_info(clip: MeasuredClip) -> ClipInfoDoc:
         up_axis=m.up_axis,
         root=m.root,
         facing=m.facing,
-        range=[float(v) for v in clip.time_range] if clip.time_range is not None else None,
+        range=_used_range(clip),
         range_auto=entry.range == "auto",
         guesses=[f"{g.what} guessed as {g.value}: set `{g.override}`" for g in m.guesses],
         notes=list(m.notes),

@@ -40,7 +40,9 @@ class ClipInfoDoc(_Strict):
     root: str = Field(description="What the root motion was measured from (hip midpoint or a joint name).")
     facing: str = Field(description="What the facing was measured from (hip line or a joint axis).")
     range: list[float] | None = Field(
-        default=None, description="Trim applied from the manifest (or chosen by range: auto), seconds."
+        default=None,
+        description="The trimmed range measured, seconds: the frames `range:` (or range: auto) selected, "
+        "first to last.",
     )
     range_auto: bool = Field(default=False, description="Whether range: auto chose the range.")
     guesses: list[str] = Field(
