@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from bisect import bisect_left, bisect_right
 from collections import Counter, defaultdict
 from collections.abc import Iterator
-from itertools import accumulate
+
+from blendspace_pipeline.rules._agreement import close, most_agreed
 
 from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView
 
@@ -31,7 +31,9 @@ class UnitsDoubt(Rule):
         for samples in groups.values():
             # The reading most clips agree with (counted over the distinct readings: a library is
             # thousands of clips of a few readings); the clips that do not agree with it are odd.
-            common = _most_agreed(Counter(_reading(s) for s in samples))
+            common = most_agreed(
+                Counter(_reading(s) for s in samples), lambda r: r[1], SAME_UNIT, lambda r: r[0]
+            )
             odd = [s for s in samples if not _agree(_reading(s), common)]
             if not odd:
                 continue
@@ -58,19 +60,4 @@ def _reading(sample: SampleView) -> tuple[str, float]:
 
 
 def _agree(a: tuple[str, float], b: tuple[str, float]) -> bool:
-    return a[0] == b[0] and abs(a[1] - b[1]) <= SAME_UNIT * max(a[1], b[1])
-
-
-def _most_agreed(counts: Counter[tuple[str, float]]) -> tuple[str, float]:
-    """The reading the most clips agree with (`_agree`); on a tie, the one read first. Per up axis
-    the units are sorted and each one's agreeing clips counted by bisection (n log n, not n^2:
-    a library is thousands of clips)."""
-    agreeing: dict[tuple[str, float], int] = {}
-    for up in {up for up, _ in counts}:
-        units = sorted(unit for axis, unit in counts if axis == up)
-        totals = list(accumulate(counts[(up, unit)] for unit in units))
-        for unit in units:
-            low = bisect_left(units, unit * (1.0 - SAME_UNIT))
-            high = bisect_right(units, unit / (1.0 - SAME_UNIT))
-            agreeing[(up, unit)] = totals[high - 1] - (totals[low - 1] if low else 0)
-    return max(counts, key=agreeing.__getitem__)  # the first maximal one, in the order read
+    return a[0] == b[0] and close(a[1], b[1], SAME_UNIT)

@@ -368,11 +368,12 @@ def test_the_units_most_clips_agree_with_are_found_as_a_pairwise_count_would() -
     import random
     from collections import Counter
 
-    from blendspace_pipeline.rules.units_doubt import _agree, _most_agreed
+    from blendspace_pipeline.rules._agreement import most_agreed
+    from blendspace_pipeline.rules.units_doubt import SAME_UNIT, _agree
 
     rng = random.Random(3)
     units = [0.01, 0.0101, 0.00995, 0.0254, 1.0, 0.0564, 0.05644, 0.001, 0.0099]
     for _ in range(500):
         counts = Counter((rng.choice("yz"), rng.choice(units)) for _ in range(rng.randint(1, 30)))
         pairwise = max(counts, key=lambda r: sum(n for o, n in counts.items() if _agree(r, o)))
-        assert _most_agreed(counts) == pairwise
+        assert most_agreed(counts, lambda r: r[1], SAME_UNIT, lambda r: r[0]) == pairwise

@@ -136,6 +136,26 @@ def test_a_layer_clip_on_another_rig_or_rate_is_reported(change: str, tmp_path: 
     assert found[0].line == layers_line  # at the layers (it was at `clips:`)
 
 
+@pytest.mark.parametrize("fps, reported", [(25.0, True), (30.5, False), (29.5, False), (60.0, True)])
+def test_a_main_clip_at_another_rate_is_reported_unless_within_2_percent(
+    fps: float, reported: bool, tmp_path: Path
+) -> None:
+    """24 and 25 fps are two exports (4 % apart); a rate a reader fitted to a clip's length is not."""
+    manifest = _project(tmp_path)
+    write_usd_clip(
+        generate(GaitSpec("walk", speed=1.4, fps=fps)),
+        tmp_path / "clips" / "walk.usda",
+        meters_per_unit=1.0,
+        up_axis="y",
+    )
+    found = [
+        d
+        for d in analyse(manifest).all_diagnostics()
+        if d.rule == "inconsistent-fps" and "layer" not in d.message
+    ]
+    assert [d.clips for d in found] == ([("walk",)] if reported else [])
+
+
 def test_layer_clips_of_the_main_rig_and_rate_are_not_reported(tmp_path: Path) -> None:
     rules = {d.rule for d in analyse(_project(tmp_path)).all_diagnostics()}
     assert not rules & {"inconsistent-fps", "inconsistent-skeleton"}

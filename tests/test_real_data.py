@@ -209,3 +209,19 @@ def test_a_trimmed_clip_reports_the_range_it_measured(tmp_path: Path) -> None:
     fps = clips["cmu"]["fps"]  # 1 / 0.008333 s
     assert clips["cmu"]["range"] == pytest.approx([240 / fps, 480 / fps], abs=1e-5)  # nearest frames
     assert clips["run"]["range"] is None  # not trimmed
+
+
+def test_a_frame_rate_a_reader_fitted_to_the_length_is_the_set_s_rate(tmp_path: Path) -> None:
+    """The Godot walk's 30 fps keys are sampled at 30.4 fps to end on its length: the same export
+    as the other clips at 30 fps, not an `inconsistent-fps` finding (it was one)."""
+    shared_data("godot-tps-demo", "walking_nogun-cycle.tres")
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: g\nclips:\n"
+        f"  - path: '{SHARED_DATA.as_posix()}/godot-tps-demo/*-cycle.tres'\n"
+        "skeleton: {forward: +z}\n"
+    )
+    space = analyse(manifest)
+    rates = sorted({round(s.clip.measurement.fps, 2) for s in space.samples})
+    assert rates[0] == 30.0 and 30.0 < rates[-1] < 30.6  # the walk's 30.4 among them
+    assert not [d for d in space.diagnostics if d.rule == "inconsistent-fps"]
