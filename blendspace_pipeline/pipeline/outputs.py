@@ -590,7 +590,10 @@ def publish(
     ``sources``: the files the build read, never replaced. Returns the generation's folder name
     (None where files are moved into place, no symlinks)."""
     home = out_dir / GENERATIONS / name
-    _check_targets(out_dir, files, home / CURRENT, sources)
+    # The sources' identities (a stat each: 1,000 on a library), made once and only when a clip
+    # folder's file is in question: most builds have no generated clip to check or tidy.
+    read = functools.cache(lambda: _identities(sources))
+    _check_targets(out_dir, files, home / CURRENT, read)
     if not _symlinks_work(out_dir):
         for relative in files:
             target = out_dir / relative
@@ -633,19 +636,21 @@ def publish(
         _link(out_dir / relative, home / CURRENT / relative)
     _drop_dangling_links(out_dir, home, wanted)
     if previous is not None and previous != generation:
-        _drop_old_clips(out_dir, home / previous, wanted, sources)
+        _drop_old_clips(out_dir, home / previous, wanted, read)
     for old in home.glob("g-*"):
         if old.name != generation:
             shutil.rmtree(old, ignore_errors=True)
     return generation
 
 
-def _check_targets(out_dir: Path, files: Sequence[Path], current: Path, sources: Sequence[Path]) -> None:
+def _check_targets(
+    out_dir: Path, files: Sequence[Path], current: Path, read: Callable[[], set[tuple[int, int]]]
+) -> None:
     """Refuse, before anything moves, an output whose place holds a folder (never deleted: it is
     the user's), whose folder is a file, or (a generated clip) a file this tool did not write: a
     clip of the manifest's (`output.dir: .` puts `clips/` beside the sources) or any other file
-    of the user's. The file system would fail half-way through; a clip would be overwritten."""
-    read = _identities(sources)
+    of the user's. The file system would fail half-way through; a clip would be overwritten.
+    ``read``: the identities of the files the build read."""
     for relative in files:
         target = out_dir / relative
         if target.is_dir() and not target.is_symlink():
@@ -661,7 +666,7 @@ def _check_targets(out_dir: Path, files: Sequence[Path], current: Path, sources:
                 )
         if relative.parent == Path(".") or not target.is_file() or target.is_symlink():
             continue
-        if _identity(target) in read or not _generated_here(target, current / relative):
+        if _identity(target) in read() or not _generated_here(target, current / relative):
             raise FileExistsError(
                 errno.EEXIST,
                 "a clip this tool did not generate is where a generated clip goes (it is never "
@@ -680,8 +685,8 @@ def _identity(path: Path | str) -> tuple[int, int] | None:
     return info.st_dev, info.st_ino
 
 
-def _identities(paths: Sequence[Path]) -> set[tuple[int, int] | None]:
-    return {_identity(path) for path in paths} - {None}
+def _identities(paths: Sequence[Path]) -> set[tuple[int, int]]:
+    return {found for found in map(_identity, paths) if found is not None}
 
 
 def _generated_here(target: Path, previous: Path) -> bool:
@@ -706,7 +711,9 @@ def _generated_here(target: Path, previous: Path) -> bool:
 PLACED = ".placed.json"
 
 
-def _drop_old_clips(out_dir: Path, previous: Path, wanted: set[Path], sources: Sequence[Path]) -> None:
+def _drop_old_clips(
+    out_dir: Path, previous: Path, wanted: set[Path], read: Callable[[], set[tuple[int, int]]]
+) -> None:
     """The previous generation's clips that this set does not have (a fix no longer applied, a
     `--no-fix` build): removed from the clips folder while they are exactly what it placed there
     (the same file, with the bytes it had then), so engines that import every `clips/*` file do not
@@ -718,10 +725,9 @@ def _drop_old_clips(out_dir: Path, previous: Path, wanted: set[Path], sources: S
         return  # no record of what it placed (an older generation): nothing is known to be ours
     if not isinstance(placed, dict):
         return
-    read = _identities(sources)
     for relative, digest in sorted(placed.items()):
         target = out_dir / relative
-        if target in wanted or target.is_symlink() or _identity(target) in read:
+        if target in wanted or target.is_symlink() or _identity(target) in read():
             continue
         try:
             if os.path.samefile(target, previous / relative) and file_sha256(target) == digest:
