@@ -20,6 +20,7 @@ import os
 import socket
 import stat
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 SERVER_DIR_VARIABLE = "BLENDSPACE_SERVER_DIR"
@@ -104,16 +105,7 @@ def _walk(root: Path, digest: hashlib._Hash) -> None:
 
 def fingerprint() -> str:
     """Identity of the code a command would run here: installed sources, interpreter, sys.path."""
-    digest = hashlib.sha256(f"{sys.executable}\0{sys.version}\0".encode())
-    for entry in _imported_path():
-        try:
-            moved = os.stat(entry or ".").st_mtime_ns
-        except OSError:
-            moved = 0
-        digest.update(f"{entry}\0{moved}\n".encode())
-    for root in _code_roots():
-        _walk(root, digest)
-    return digest.hexdigest()
+    return _fingerprint(_modified)
 
 
 def installed_fingerprint() -> str:
@@ -122,19 +114,33 @@ def installed_fingerprint() -> str:
     `*.dist-info`/`*.egg-info` names carry the versions). Unlike `fingerprint` it leaves out the
     folders' modification times: a project folder on `PYTHONPATH` (for `plugins:` by module name)
     that is also the build's output folder changes at every build, and a build would never replay."""
+    return _fingerprint(_distributions)
+
+
+def _fingerprint(state_of: Callable[[str], str]) -> str:
+    """The interpreter, each imported `sys.path` folder with ``state_of`` it, and the tool's sources."""
     digest = hashlib.sha256(f"{sys.executable}\0{sys.version}\0".encode())
     for entry in _imported_path():
-        digest.update(f"{entry}\n".encode())
-        try:
-            names = sorted(
-                e.name for e in os.scandir(entry or ".") if e.name.endswith((".dist-info", ".egg-info"))
-            )
-        except OSError:
-            names = []
-        digest.update("\0".join(names).encode())
+        digest.update(f"{entry}\0{state_of(entry)}\n".encode())
     for root in _code_roots():
         _walk(root, digest)
     return digest.hexdigest()
+
+
+def _modified(entry: str) -> str:
+    try:
+        return str(os.stat(entry or ".").st_mtime_ns)
+    except OSError:
+        return "0"
+
+
+def _distributions(entry: str) -> str:
+    try:
+        return "\0".join(
+            sorted(e.name for e in os.scandir(entry or ".") if e.name.endswith((".dist-info", ".egg-info")))
+        )
+    except OSError:
+        return ""
 
 
 def _imported_path() -> list[str]:
