@@ -107,6 +107,8 @@ class SampleView:
     in_place: bool = False
     units_guessed: bool = False
     joint_names: tuple[str, ...] = ()
+    # Each joint's parent, an index into `joint_names` (-1: a root); () when unknown.
+    joint_parents: tuple[int, ...] = ()
     notes: tuple[str, ...] = ()
     guesses: tuple[DetectionGuessView, ...] = ()
     # Same key: same joint names, hierarchy and rest offsets (one rig), so one up axis and unit.
@@ -129,6 +131,7 @@ class SampleView:
         if self.expect is not None:
             object.__setattr__(self, "expect", _read_only(self.expect))
         object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        object.__setattr__(self, "joint_parents", tuple(self.joint_parents))
         object.__setattr__(self, "notes", tuple(self.notes))
         object.__setattr__(self, "guesses", tuple(self.guesses))
 

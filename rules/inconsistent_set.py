@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 from blendspace_pipeline.rules._agreement import close, most_agreed
 
-from blendspace_pipeline.api import Diagnostic, Rule, SpaceView
+from blendspace_pipeline.api import Diagnostic, Rule, SampleView, SpaceView
 
 # Rates within 2 % are one export: a reader that fits whole frames to an animation's length
 # samples 30 fps keys at 30.4 fps (the Godot TPS demo's walk), 24 at 24.17 (a glTF clip); the mixed
@@ -51,10 +51,10 @@ class InconsistentFps(Rule):
 
 
 class InconsistentSkeleton(Rule):
-    """Blending needs the same joints in every clip. A clip whose joint names differ from the
-    set's usual skeleton cannot be blended with the rest, mirrored against it, or interpolated.
-    A style or beta layer's clips are blended joint by joint with the main space's, so they are
-    held to the main set's skeleton too.
+    """Blending needs one skeleton: the same joints, under the same parents, in the same order. A
+    clip on another skeleton cannot be blended with the rest, mirrored against it, or interpolated
+    (its blends are left out of the foot-skate map). A style or beta layer's clips are blended
+    joint by joint with the main space's, so they are held to the main set's skeleton too.
     """
 
     slug = "inconsistent-skeleton"
@@ -63,14 +63,22 @@ class InconsistentSkeleton(Rule):
     summary = "clips whose joints differ from the rest of the set"
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
-        layouts = Counter(s.joint_names for s in space.samples if s.joint_names)
+        everyone = [
+            s
+            for s in [*space.samples, *(s for layer in space.layers for s in layer.samples)]
+            if s.joint_names
+        ]
+        # A view built without the hierarchy (a studio's test of its rule): joint names only, for all.
+        known = all(len(s.joint_parents) == len(s.joint_names) for s in everyone)
+        layout = {id(s): _layout(s, known) for s in everyone}
+        layouts = Counter(layout[id(s)] for s in space.samples if s.joint_names)
         if not layouts:
             return
         common = layouts.most_common(1)[0][0]
         for sample in space.samples:
-            if sample.joint_names and sample.joint_names != common:
+            if sample.joint_names and layout[id(sample)] != common:
                 yield self.report(
-                    f"{sample.name} has a different skeleton ({_difference(sample.joint_names, common)})",
+                    f"{sample.name} has a different skeleton ({_difference(layout[id(sample)], common)})",
                     clips=[sample.name],
                     position=sample.position,
                     hint="retarget the clip onto the set's skeleton before blending",
@@ -78,16 +86,48 @@ class InconsistentSkeleton(Rule):
         # A style or beta layer's poses are blended joint by joint with the main space's.
         for layer in space.layers:
             for sample in layer.samples:
-                if sample.joint_names and sample.joint_names != common:
+                if sample.joint_names and layout[id(sample)] != common:
                     yield self.report(
                         f"{layer.kind} layer {layer.name!r}: {sample.name} has another skeleton than the "
-                        f"main space's clips ({_difference(sample.joint_names, common)})",
+                        f"main space's clips ({_difference(layout[id(sample)], common)})",
                         clips=[sample.name],
                         hint="retarget the layer's clip onto the main space's skeleton",
                     )
 
 
-def _difference(joints: tuple[str, ...], common: tuple[str, ...]) -> str:
-    missing = sorted(set(common) - set(joints))[:5]
-    extra = sorted(set(joints) - set(common))[:5]
-    return f"{len(joints)} joints vs {len(common)}; missing {missing or '-'}, extra {extra or '-'}"
+# (joint names, each joint's parent's name), in the clip's joint order; "" for a root, None where
+# the hierarchy is unknown.
+Layout = tuple[tuple[str, ...], tuple[str, ...] | None]
+
+
+def _layout(sample: SampleView, known: bool) -> Layout:
+    names, parents = sample.joint_names, sample.joint_parents
+    if not known:
+        return names, None
+    return names, tuple(names[p] if 0 <= p < len(names) else "" for p in parents)
+
+
+def _difference(layout: Layout, common: Layout) -> str:
+    """What differs, in the order a TD fixes it: the joints, then where they hang, then their order."""
+    joints, parents = layout
+    usual, usual_parents = common
+    missing = sorted(set(usual) - set(joints))[:5]
+    extra = sorted(set(joints) - set(usual))[:5]
+    if missing or extra or len(joints) != len(usual):
+        return f"{len(joints)} joints vs {len(usual)}; missing {missing or '-'}, extra {extra or '-'}"
+    if parents is not None and usual_parents is not None:
+        here = dict(zip(joints, parents, strict=True))
+        there = dict(zip(usual, usual_parents, strict=True))
+        moved = [name for name in usual if here[name] != there[name]]
+        if moved:
+            shown = "; ".join(
+                f"{name} under {here[name] or 'no parent'}, not {there[name] or 'no parent'} as in the set"
+                for name in moved[:3]
+            )
+            more = f" and {len(moved) - 3} more" if len(moved) > 3 else ""
+            return f"the same {len(joints)} joints in another hierarchy: {shown}{more}"
+    first = next(i for i, (a, b) in enumerate(zip(joints, usual, strict=True)) if a != b)
+    return (
+        f"the same {len(joints)} joints and hierarchy in another order from joint {first + 1}, "
+        f"{joints[first]} where the set has {usual[first]}: re-export in the set's joint order"
+    )

@@ -117,7 +117,9 @@ def test_style_without_a_backward_clip_and_a_mask_typo(tmp_path: Path) -> None:
     assert rules["mask-joints"].hint == "did you mean 'LeftUpLeg'?"
 
 
-@pytest.mark.parametrize("change", ["namespaced", "extra_joint", "missing_leaf", "fps"])
+@pytest.mark.parametrize(
+    "change", ["namespaced", "extra_joint", "missing_leaf", "reparented", "reordered", "fps"]
+)
 def test_a_layer_clip_on_another_rig_or_rate_is_reported(change: str, tmp_path: Path) -> None:
     """A style clip is blended joint by joint with the main clips: one of another skeleton (or
     rate) was not reported when the same clip in the main list was."""

@@ -236,3 +236,41 @@ def test_suggest_rejects_a_count_below_one(
     printed = capsys.readouterr()
     assert printed.out == ""
     assert f"argument --count: {count} is not a positive number of candidates" in printed.err
+
+
+def test_suggest_leaves_out_library_clips_of_another_hierarchy(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A take with the set's joint names under other parents (or in another order) cannot be
+    blended with it (`inconsistent-skeleton`): it is not proposed, however near it lies. A store
+    indexed before the hierarchy was recorded still matches by joint names."""
+    from blendspace_pipeline.motion.hostile import on_other_skeleton
+
+    _write(tmp_path / "project" / "clips", MANIFEST_CLIPS)
+    library = tmp_path / "library"
+    library.mkdir()
+    for change in ("reparented", "reordered"):  # exactly where the mirror of walk_left goes
+        clip = on_other_skeleton(
+            generate(GaitSpec(f"take_{change}", speed=1.4, turn_rate=-60.0, duration=1.0)), change
+        )
+        write_bvh_clip(clip, library / f"take_{change}.bvh")
+    write_bvh_clip(
+        generate(GaitSpec("take_near", speed=1.4, turn_rate=-57.0, duration=1.0)), library / "take_near.bvh"
+    )
+    manifest = tmp_path / "project" / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: gait\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    store = str(tmp_path / "store")
+    assert main(["index", str(library), "--store", store, "--workers", "1"]) == 0
+    capsys.readouterr()
+
+    def mirror_candidates() -> list[str]:
+        assert main(["suggest", str(manifest), "--library", store, "--format", "json"]) == 0
+        result = json.loads(capsys.readouterr().out)
+        mirror = next(p for p in result["placeholders"] if p["rule"] == "missing-opposite")
+        return [c["name"] for c in mirror["candidates"]]
+
+    assert mirror_candidates() == ["take_near"]
+    # An older store: rows without `layout`, matched by names (the reordered take has them all).
+    rows = [{k: v for k, v in row.items() if k != "layout"} for row in read_index(store)]
+    write_index(store, rows)
+    assert sorted(mirror_candidates()) == ["take_near", "take_reordered", "take_reparented"]

@@ -353,7 +353,33 @@ def test_build_and_check_take_the_library_option(
     assert main(["check", str(manifest), "--library", store]) in (0, 1)
     assert counter.calls == 0
     assert cache.LIBRARY_VARIABLE not in os.environ  # restored after the command
-    capsys.readouterr()
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_a_library_store_that_is_not_there_is_said_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A typo in --library read as an empty store: every clip measured without a word. The build
+    still runs (a farm's first night comes before its index), and says why it measures."""
+    pytest.importorskip("fsspec")
+    monkeypatch.setenv("BLENDSPACE_CACHE_DIR", str(tmp_path / "cache"))
+    manifest = _project(tmp_path / "p")
+    styles = tmp_path / "p" / "styles"
+    styles.mkdir()
+    write_bvh_clip(generate(GaitSpec("limp_walk", speed=1.0, duration=1.0)), styles / "limp_walk.bvh")
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8")
+        + "layers:\n  - name: limp\n    kind: style\n    clips: [styles/*.bvh]\n",
+        encoding="utf-8",
+    )
+    store = str(tmp_path / "stroe")
+    counter = Counter(monkeypatch)
+    assert main(["check", str(manifest), "--library", store, "--jobs", "1"]) in (0, 1)
+    assert counter.calls == 4  # measured here
+    err = capsys.readouterr().err
+    assert err.count("warning: the library store") == 1, err  # not again for the style layer
+    assert f"{store!r} does not exist: every clip is measured here" in err
+    assert f"blendspace index LIBRARY_DIR --store {store}" in err
 
 
 def test_stored_measurements_serialise_like_asdict() -> None:

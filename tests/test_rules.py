@@ -8,13 +8,14 @@ from blendspace_pipeline.rules.axis_zero_off_grid import AxisZeroOffGrid
 from blendspace_pipeline.rules.crossing_axis import CrossingAxis
 from blendspace_pipeline.rules.degenerate_space import DegenerateSpace, DuplicatePosition
 from blendspace_pipeline.rules.in_place_clip import InPlaceClip
-from blendspace_pipeline.rules.inconsistent_set import InconsistentFps
+from blendspace_pipeline.rules.inconsistent_set import InconsistentFps, InconsistentSkeleton
 from blendspace_pipeline.rules.misalignment import Misalignment
 from blendspace_pipeline.rules.missing_opposite import MissingOpposite
 from blendspace_pipeline.rules.outside_axis_range import OutsideAxisRange
 from blendspace_pipeline.rules.too_close import TooClose
 from blendspace_pipeline.rules.uncovered_area import UncoveredArea, covered_fraction
 
+from blendspace_pipeline.api import SpaceView
 from blendspace_pipeline.motion.procedural import GaitSpec
 from blendspace_pipeline.space.placement import Axis
 from blendspace_pipeline.testing import run_rule, space_from_positions, space_from_specs
@@ -154,6 +155,70 @@ def test_clip_level_rules() -> None:
     out = run_rule(OutsideAxisRange, space)
     assert [f.clips for f in out] == [("fast",)] and out[0].severity == "error"
     assert run_rule(InconsistentFps, space) == []
+
+
+def _on_skeletons(changes: dict[str, str | None]) -> SpaceView:
+    """KEY_SET's positions, each clip with the joints of a procedural walk changed as ``changes``
+    says (`hostile.SKELETON_CHANGES`; None: the walk's own skeleton)."""
+    from dataclasses import replace
+
+    from blendspace_pipeline.motion.hostile import on_other_skeleton
+    from blendspace_pipeline.motion.procedural import generate
+
+    walk = generate(GaitSpec("walk", speed=1.4, duration=0.5))
+    space = space_from_positions(KEY_SET)
+    samples = []
+    for sample in space.samples:
+        change = changes.get(sample.name)
+        skeleton = (on_other_skeleton(walk, change) if change else walk).skeleton
+        samples.append(replace(sample, joint_names=skeleton.names, joint_parents=skeleton.parents))
+    return replace(space, samples=tuple(samples))
+
+
+@pytest.mark.parametrize(
+    "change, says",
+    [
+        ("namespaced", "missing ["),
+        ("extra_joint", "extra ['prop_r']"),
+        ("missing_leaf", "joints vs"),
+        ("reparented", "in another hierarchy: "),
+        ("reordered", "hierarchy in another order from joint 2, "),
+    ],
+)
+def test_inconsistent_skeleton_names_each_kind_of_difference(change: str, says: str) -> None:
+    """Names, hierarchy and order: a joint under another parent, or the same joints in another
+    order, cannot be blended either (only names were compared)."""
+    findings = run_rule(InconsistentSkeleton, _on_skeletons({"walk_left": change}))
+    assert [f.clips for f in findings] == [("walk_left",)]
+    assert says in findings[0].message, findings[0].message
+    assert run_rule(InconsistentSkeleton, _on_skeletons({})) == []
+
+
+def test_inconsistent_skeleton_says_where_a_reparented_joint_hangs() -> None:
+    from blendspace_pipeline.motion.hostile import on_other_skeleton
+    from blendspace_pipeline.motion.procedural import generate
+
+    walk = generate(GaitSpec("walk", speed=1.4, duration=0.5)).skeleton
+    moved = on_other_skeleton(generate(GaitSpec("walk", speed=1.4, duration=0.5)), "reparented").skeleton
+    joint = next(i for i in range(len(walk.names)) if walk.parents[i] != moved.parents[i])
+    message = run_rule(InconsistentSkeleton, _on_skeletons({"back": "reparented"}))[0].message
+    expected = (
+        f"{walk.names[joint]} under {walk.names[moved.parents[joint]]}, "
+        f"not {walk.names[walk.parents[joint]]} as in the set"
+    )
+    assert expected in message, message
+
+
+def test_inconsistent_skeleton_without_the_hierarchy_compares_names() -> None:
+    """A view built without parents (a studio's own test space) is not all reported."""
+    from dataclasses import replace
+
+    space = _on_skeletons({"walk_left": "reordered"})
+    bare = replace(space, samples=tuple(replace(s, joint_parents=()) for s in space.samples))
+    assert [f.clips for f in run_rule(InconsistentSkeleton, bare)] == [("walk_left",)]  # the order differs
+    space = _on_skeletons({"walk_left": "reparented"})
+    bare = replace(space, samples=tuple(replace(s, joint_parents=()) for s in space.samples))
+    assert run_rule(InconsistentSkeleton, bare) == []
 
 
 def test_degenerate_and_duplicates() -> None:

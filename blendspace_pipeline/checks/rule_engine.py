@@ -322,6 +322,7 @@ def sample_view(
         in_place=m.in_place,
         units_guessed=m.units_guessed,
         joint_names=tuple(m.joint_names),
+        joint_parents=tuple(m.joint_parents),
         notes=tuple(m.notes),
         guesses=tuple(DetectionGuessView(g.what, g.value, g.evidence, g.override) for g in m.guesses),
         skeleton_key=m.skeleton_key,

@@ -36,14 +36,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from blendspace_pipeline.pipeline.analysis import analyse
-    from blendspace_pipeline.pipeline.library import read_index, skeleton_signature
+    from blendspace_pipeline.pipeline.library import layout_signature, read_index, skeleton_signature
 
     # The store first: a wrong one is bad input (exit 2), found before the manifest's analysis.
     rows = read_index(args.library)
     space = analyse(args.manifest)
-    skeletons = {skeleton_signature(s.clip.measurement.joint_names) for s in space.samples if not s.generated}
+    authored = [s.clip.measurement for s in space.samples if not s.generated]
+    skeletons = {skeleton_signature(m.joint_names) for m in authored}
+    # A row indexed with its hierarchy must have one of the set's; an older store's rows (no
+    # `layout`) are matched by joint names only.
+    layouts = {layout_signature(m.joint_names, m.joint_parents) for m in authored}
     in_manifest = {str(Path(s.clip.source).resolve()) for s in space.samples}
-    candidates = [r for r in rows if r["skeleton"] in skeletons and r["path"] not in in_manifest]
+    candidates = [
+        r
+        for r in rows
+        if r["skeleton"] in skeletons and r.get("layout") in (None, *layouts) and r["path"] not in in_manifest
+    ]
     axes = space.axes
     features = [f"feature.{axis.feature}" for axis in axes]
     spans = [axis.maximum - axis.minimum for axis in axes]

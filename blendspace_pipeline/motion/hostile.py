@@ -289,8 +289,8 @@ def studio_set(*, seed: int = 118) -> list[HostileSpec]:
 
 # Ways a studio's clip ends up on another skeleton than the rest of its set, the motion unchanged:
 # a DCC's namespace on every joint, a helper joint added (a prop or twist bone), a leaf joint lost
-# on export, and one joint under another parent.
-SKELETON_CHANGES = ("namespaced", "extra_joint", "missing_leaf", "reparented")
+# on export, one joint under another parent, and the same joints written in another order.
+SKELETON_CHANGES = ("namespaced", "extra_joint", "missing_leaf", "reparented", "reordered")
 
 
 def on_other_skeleton(clip: Clip, change: str) -> Clip:
@@ -327,6 +327,15 @@ def on_other_skeleton(clip: Clip, change: str) -> Clip:
         # The leaf moves under its grandparent (same names, another hierarchy).
         grandparent = parents[parents[leaf]]
         parents[leaf] = grandparent if grandparent >= 0 else parents[leaf]
+    elif change == "reordered":
+        # Same joints and hierarchy, the root's branches written last to first (another exporter's
+        # order): still parents before children, as every format stores them.
+        order = _depth_first(parents, reverse_root=True)
+        remap = {old: new for new, old in enumerate(order)}
+        names = [names[i] for i in order]
+        parents = [-1 if parents[i] < 0 else remap[parents[i]] for i in order]
+        rest_t, rest_r = rest_t[order], rest_r[order]
+        rotations, translations = rotations[:, order], translations[:, order]
     else:
         raise ValueError(f"unknown skeleton change {change!r}; one of {', '.join(SKELETON_CHANGES)}")
     other = Skeleton(
@@ -343,3 +352,18 @@ def on_other_skeleton(clip: Clip, change: str) -> Clip:
         translations=np.ascontiguousarray(translations),
         notes=list(clip.notes),
     )
+
+
+def _depth_first(parents: list[int], reverse_root: bool) -> list[int]:
+    """Joint indices depth first, children in index order (the root's reversed if asked)."""
+    order: list[int] = []
+
+    def visit(joint: int) -> None:
+        order.append(joint)
+        children = [j for j, p in enumerate(parents) if p == joint]
+        for child in reversed(children) if reverse_root and parents[joint] < 0 else children:
+            visit(child)
+
+    for root in (j for j, p in enumerate(parents) if p < 0):
+        visit(root)
+    return order

@@ -67,6 +67,8 @@ class Measurement:
     in_place: bool = False
     units_guessed: bool = False
     joint_names: list[str] = field(default_factory=list)
+    # Each joint's parent index in `joint_names` (-1: a root): blending needs one hierarchy too.
+    joint_parents: list[int] = field(default_factory=list)
     # Decisions the data did not settle (`detection-guess` findings name them and their override).
     guesses: list[DetectionGuess] = field(default_factory=list)
     # Seconds of the clip measured, first and last frame (None: the whole clip).
@@ -221,6 +223,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         in_place=in_place,
         units_guessed=units_guess is not None,
         joint_names=list(used.skeleton.names),
+        joint_parents=[int(p) for p in used.skeleton.parents],
         guesses=guesses,
         range_used=range_used if (explicit is not None or auto or first > 0) else None,
         skeleton_key=skeleton_key(clip),

@@ -40,8 +40,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 3: detection from the body, sway-free heading; 4: foot contacts and plant phases;
 # 5: readers refuse out-of-range data (frame rate, angles, sizes) that earlier revisions measured;
 # 6: an assumed facing of a track set without hierarchy (Godot) is a detection guess, and a clip
-# travelling under 1 mm/s has direction 0 (not the angle of its drift).
-MEASUREMENT_REVISION = 6
+# travelling under 1 mm/s has direction 0 (not the angle of its drift); 7: the joints' parents
+# (`joint_parents`), so `inconsistent-skeleton` sees another hierarchy.
+MEASUREMENT_REVISION = 7
 
 
 def cache_key(

@@ -59,9 +59,29 @@ def store_problem(store: str) -> tuple[str, str] | None:
     return None
 
 
+def store_exists(store: str) -> bool:
+    """Whether ``store`` (one fsspec can open: see `store_problem`) is there at all."""
+    import fsspec
+
+    fs, root = fsspec.core.url_to_fs(store)
+    try:
+        return bool(fs.exists(root))
+    except OSError:  # unreachable: the reads that follow say so clip by clip, or miss
+        return True
+
+
 def skeleton_signature(joint_names: Iterable[str]) -> str:
     """Clips with the same joints (any order) share a rig: what a suggestion must match."""
     return hashlib.sha256("\n".join(sorted(joint_names)).encode()).hexdigest()[:16]
+
+
+def layout_signature(joint_names: Sequence[str], joint_parents: Sequence[int]) -> str | None:
+    """The same joints under the same parents in the same order: what blending with the set needs
+    (`inconsistent-skeleton`). None without the hierarchy (a store indexed before it was measured)."""
+    if len(joint_parents) != len(joint_names):
+        return None
+    text = json.dumps([list(joint_names), [int(p) for p in joint_parents]])
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def find_clips(folders: Sequence[Path]) -> list[Path]:
@@ -150,6 +170,7 @@ def _row(path: str, digest: str, name: str, measurement: dict[str, Any]) -> dict
         "digest": digest,
         "name": name,
         "skeleton": skeleton_signature(measurement.get("joint_names", [])),
+        "layout": layout_signature(measurement.get("joint_names", []), measurement.get("joint_parents", [])),
         "frames": int(measurement["frames"]),
         "fps": float(measurement["fps"]),
         "gait_period": measurement.get("gait_period"),

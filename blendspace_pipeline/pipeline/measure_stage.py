@@ -143,7 +143,7 @@ def measure_files(
     top = loaded.model.skeleton
     store = library_store(library)
     if store:
-        _check_store(loaded, store)
+        _check_store(loaded, store, warn=part == "clips")
     settings_of: dict[int, RigSettings] = {}  # one per manifest entry, not per file
     job_list: list[Job] = []
     for f in files:
@@ -161,10 +161,12 @@ def measure_files(
     return clips
 
 
-def _check_store(loaded: LoadedManifest, store: str) -> None:
-    """A store the build cannot open is bad input (exit 2), said once, not a crash per clip. (A
-    store that does not exist yet is not: the build measures what it does not find there.)"""
-    from blendspace_pipeline.pipeline.library import store_problem
+def _check_store(loaded: LoadedManifest, store: str, warn: bool) -> None:
+    """A store the build cannot open is bad input (exit 2), said once, not a crash per clip. A
+    store that is not there is not (a farm's first night, before `blendspace index` ran): the
+    build measures every clip itself, and says so when ``warn`` (once a manifest: for its main clip
+    list), since a typo in the path reads the same."""
+    from blendspace_pipeline.pipeline.library import store_exists, store_problem
 
     found = store_problem(store)
     if found is not None:
@@ -173,6 +175,12 @@ def _check_store(loaded: LoadedManifest, store: str) -> None:
             f"the library store {store!r} {problem}",
             path=loaded.path,
             hint=f"{hint}, or drop --library / {cache.LIBRARY_VARIABLE}",
+        )
+    if warn and not store_exists(store):
+        sys.stderr.write(
+            f"blendspace: warning: the library store {store!r} does not exist: every clip is "
+            f"measured here (check the path, or make the store with `blendspace index LIBRARY_DIR "
+            f"--store {store}`)\n"
         )
 
 
