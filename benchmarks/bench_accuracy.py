@@ -84,7 +84,7 @@ def hostile_table(folder: Path | None) -> tuple[list[str], bool]:
 
 def studio_table(folder: Path | None) -> tuple[list[str], bool]:
     speed_errors, turn_errors, signs, turning = [], [], 0, 0
-    spread_right, raw_turn_errors = 0, []
+    spread_right, raw_turn_errors, direction_errors = 0, [], []
     for spec in studio_set():
         clip = _through_bvh(take(spec).clip, folder)
         m = measure(clip, AUTO)
@@ -98,11 +98,14 @@ def studio_table(folder: Path | None) -> tuple[list[str], bool]:
         speed_errors.append(abs(m.features["speed"] / _signed(spec) - 1.0))
         truth = spec.turn_total or 0.0
         turn_errors.append(abs(m.features["turn"] - truth))
+        if spec.turn_total is None:  # a walking 90 deg turn has no one direction of travel
+            direction_errors.append(abs((m.features["direction"] - spec.direction + 180.0) % 360.0 - 180.0))
         if truth:
             turning += 1
             signs += int(np.sign(m.features["turn"]) == np.sign(truth))
     median, worst = float(np.median(speed_errors)), float(max(speed_errors))
     ok = signs == turning and max(turn_errors) <= 10.0 and median <= 0.02 and worst <= 0.05
+    ok &= max(direction_errors) <= 2.0
     lines = [
         "| measure | goal | result |",
         "|---|---|---|",
@@ -111,6 +114,8 @@ def studio_table(folder: Path | None) -> tuple[list[str], bool]:
         f"| turn error, every take | <= 10 deg | max {max(turn_errors):.3f} deg |",
         f"| speed error median | <= 2 % | {median * 100:.3f} % |",
         f"| speed error max | <= 5 % | {worst * 100:.3f} % |",
+        f"| direction error, straight takes ({len(direction_errors)}) | <= 2 deg | median "
+        f"{float(np.median(direction_errors)):.3f} deg, max {max(direction_errors):.3f} deg |",
         "",
         "The previous method on the same takes: up axis from the joints' spread in frame 1 right on "
         f"{spread_right}/{len(speed_errors)}; with the up axis given, turn from two single frames off by up to "

@@ -81,6 +81,16 @@ def test_strafes_and_backward_travel(direction: float) -> None:
     assert (features["speed"] < 0) == (abs(direction) > 90.0)
 
 
+@pytest.mark.parametrize("heading", [0.0, 30.0, -70.0, 123.0])
+def test_straight_back_reads_180_from_any_start_heading(heading: float) -> None:
+    """The range is (-180, 180]: takes that differ only in where they face read -180.0 (a value a
+    hair past -180, printed with the document's 6 decimals) or 180.0, and landed on opposite
+    edges of a direction axis."""
+    spec = GaitSpec("back", speed=1.2, direction=180.0, duration=4.0, start_heading=heading)
+    features = measure(generate(spec, meters_per_unit=0.01), AUTO).features
+    assert round(features["direction"], 6) == 180.0
+
+
 @pytest.mark.parametrize("direction", [-90.0, 45.0, 180.0])
 def test_a_clip_that_does_not_travel_has_no_direction(direction: float) -> None:
     """Drift under 1 mm/s is no travel: direction 0, not the angle of the drift (an in-place run

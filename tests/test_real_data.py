@@ -225,3 +225,31 @@ def test_a_frame_rate_a_reader_fitted_to_the_length_is_the_set_s_rate(tmp_path: 
     rates = sorted({round(s.clip.measurement.fps, 2) for s in space.samples})
     assert rates[0] == 30.0 and 30.0 < rates[-1] < 30.6  # the walk's 30.4 among them
     assert not [d for d in space.diagnostics if d.rule == "inconsistent-fps"]
+
+
+@pytest.mark.parametrize(("take", "window"), [("131_01", (1.0, 5.5)), ("131_02", (1.0, 5.5))])
+def test_cmu_range_from_standing_reads_the_hip_line_s_turn(take: str, window: tuple[float, float]) -> None:
+    """A `range:` that starts while the actor stands in a split stance, then walks: the stride
+    sway fitted on the walk was extrapolated onto the stance's foot signal, and 131_01 over
+    [1, 5.5] s read a turn of -75 deg where the hip line turns about 0.
+
+    Oracle: the hip line's own facing (left hip minus right hip, turned 90 deg, Y up), averaged
+    over the first and the last half second of the range (about half a stride: the sway is
+    +-10 deg here), and the turn between the two."""
+    import numpy as np
+
+    from blendspace_pipeline.motion.clip import forward_kinematics
+    from blendspace_pipeline.motion.detect import RigSettings
+    from blendspace_pipeline.motion.measure import measure
+    from blendspace_pipeline.readers import read_clips
+
+    clip = read_clips(shared_data("cmu", f"{take}.bvh"))[0]
+    measured = measure(clip, RigSettings(), window)
+    _, positions = forward_kinematics(clip)
+    names = list(clip.skeleton.names)
+    across = positions[:, names.index("LeftHip")] - positions[:, names.index("RightHip")]
+    facing = np.unwrap(np.arctan2(across[:, 0], across[:, 2]))  # Y up: ground (z, x), left turn > 0
+    first, last = (round(t * clip.fps) for t in window)
+    half = round(0.5 * clip.fps)
+    turned = np.degrees(facing[last - half : last + 1].mean() - facing[first : first + half + 1].mean())
+    assert measured.features["turn"] == pytest.approx(turned, abs=12.0)

@@ -319,6 +319,9 @@ def _ground_basis(up_axis: str) -> FloatArray:
     return basis
 
 
+DIRECTION_FOLD = 1e-6  # degrees: below the document's last decimal
+
+
 def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[str, float]:
     duration = (len(positions) - 1) / fps
     steps = np.diff(positions, axis=0)
@@ -331,7 +334,9 @@ def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[st
     # A clip that does not travel has no direction of travel: the angle of its drift (an in-place
     # run's 4e-6 m/s read -90, a strafe) would be a number of noise. 0, as straight ahead.
     direction = float(np.degrees(np.arctan2(lateral, forward))) if ground_speed >= NO_TRAVEL_SPEED else 0.0
-    if direction <= -180.0 + 1e-9:  # the range is (-180, 180]: straight back reads 180
+    # The range is (-180, 180]: straight back reads 180, also when it is -179.9999999 and would
+    # print as -180 (the document keeps 6 decimals; identical takes read -180.0 and 180.0).
+    if direction <= -180.0 + DIRECTION_FOLD:
         direction = min(direction + 360.0, 180.0)
     turn = float(np.degrees(heading[-1] - heading[0]))
     return {

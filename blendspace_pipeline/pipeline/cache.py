@@ -41,8 +41,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 5: readers refuse out-of-range data (frame rate, angles, sizes) that earlier revisions measured;
 # 6: an assumed facing of a track set without hierarchy (Godot) is a detection guess, and a clip
 # travelling under 1 mm/s has direction 0 (not the angle of its drift); 7: the joints' parents
-# (`joint_parents`), so `inconsistent-skeleton` sees another hierarchy.
-MEASUREMENT_REVISION = 7
+# (`joint_parents`), so `inconsistent-skeleton` sees another hierarchy; 8: the stride-sway fit
+# keeps the facing's mean (direction, forward and lateral speed were off by up to 17 deg).
+MEASUREMENT_REVISION = 8
 
 
 def cache_key(

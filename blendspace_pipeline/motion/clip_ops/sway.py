@@ -177,9 +177,15 @@ def remove_stride_sway(
         axis=1,
     )
     coefficients, *_ = np.linalg.lstsq(basis[fit], (heading - trend)[fit], rcond=None)
-    sway = basis @ coefficients
-    # The constant term is part of the facing, not of the sway.
-    result: FloatArray = heading - (sway - coefficients[-1])
+    fitted = basis @ coefficients
+    # The sway is the fit less its mean over the strides it was fitted on: that mean belongs to
+    # the facing. (Less the constant term alone, the even terms' own mean stayed in: z^2 and
+    # rate^2 are never negative, and on a noisy 3-stride run the fit traded 17 deg between them
+    # and the constant, so the facing turned 17 deg and a straight run read direction -17.)
+    # Outside the strides it was fitted on (a standing start, a partial stride at an end) the
+    # cubic meets foot signals it never saw: no more sway than it fitted is taken out there.
+    fitted = np.clip(fitted, fitted[fit].min(), fitted[fit].max())
+    result: FloatArray = heading - (fitted - float(fitted[fit].mean()))
     return result
 
 
