@@ -113,6 +113,13 @@ def _difference(layout: Layout, common: Layout) -> str:
     usual, usual_parents = common
     missing = sorted(set(usual) - set(joints))[:5]
     extra = sorted(set(joints) - set(usual))[:5]
+    if _root(layout) in extra and _root(common) in missing and len(missing) == len(extra) == 1:
+        # Blender names an FBX's armature node after the armature object (after the file, for an
+        # imported BVH): engines bind by it (Unity's Generic curve paths, Unreal's root bone).
+        return (
+            f"its root joint is named {_root(layout)!r}, the set's {_root(common)!r}; engines bind clips "
+            "by it, and a DCC's export often names it after the armature object: give every clip the same one"
+        )
     if missing or extra or len(joints) != len(usual):
         return f"{len(joints)} joints vs {len(usual)}; missing {missing or '-'}, extra {extra or '-'}"
     if parents is not None and usual_parents is not None:
@@ -131,3 +138,11 @@ def _difference(layout: Layout, common: Layout) -> str:
         f"the same {len(joints)} joints and hierarchy in another order from joint {first + 1}, "
         f"{joints[first]} where the set has {usual[first]}: re-export in the set's joint order"
     )
+
+
+def _root(layout: Layout) -> str | None:
+    """The first joint without a parent, when the layout knows the hierarchy."""
+    joints, parents = layout
+    if parents is None:
+        return None
+    return next((name for name, parent in zip(joints, parents, strict=True) if parent == ""), None)

@@ -158,6 +158,24 @@ def test_mirror_is_the_world_space_mirror_image(options: dict[str, object]) -> N
     assert after["speed"] == pytest.approx(before["speed"], abs=0.01)
 
 
+def test_mirror_of_a_z_up_take_that_states_no_up_axis() -> None:
+    """A Z-up BVH whose hierarchy stands along Y (the root's rotation lays it into Z, as this
+    project's generator and many exporters write it), with nothing in the file saying Z-up: the
+    rest pose alone reads Y-up. The mirror came out upside down (read `-z` up) and unmirrored
+    (turn_rate +45), and the build rejected the fix as not making the space better."""
+    source = generate(
+        GaitSpec("walk_turn_left", speed=1.3, turn_rate=45.0, direction=20.0), up="z", meters_per_unit=0.01
+    )
+    source.up_axis = None
+    source.meters_per_unit = None  # as read from a BVH file
+    mirrored = mirror_clip(source, settings=SETTINGS, name="walk_turn_right")
+    assert_mirror_image(source, mirrored, 0.01)
+    after = measure(mirrored, SETTINGS)
+    assert after.up_axis == "z"
+    assert after.features["turn_rate"] == pytest.approx(-45.0, abs=0.5)
+    assert after.features["direction"] == pytest.approx(-20.0, abs=0.5)
+
+
 def asymmetric_rig(clip: Clip, seed: int = 3) -> Clip:
     """The same motion on a rig whose left joints have arbitrary local axes (as Mixamo-style rigs
     do): every left joint gets a random rest/local frame, compensated so the world pose is equal."""

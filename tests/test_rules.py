@@ -209,6 +209,22 @@ def test_inconsistent_skeleton_says_where_a_reparented_joint_hangs() -> None:
     assert expected in message, message
 
 
+def test_inconsistent_skeleton_names_a_renamed_root() -> None:
+    """Blender's FBX export names the armature node after the armature object, and a BVH it
+    imported after the file: each clip then has its own root name ("missing ['back'], extra
+    ['walk']" said nothing of why)."""
+    from dataclasses import replace
+
+    space = _on_skeletons({})
+    renamed = [
+        replace(s, joint_names=("walk_left", *s.joint_names[1:])) if s.name == "walk_left" else s
+        for s in space.samples
+    ]
+    findings = run_rule(InconsistentSkeleton, replace(space, samples=tuple(renamed)))
+    assert [f.clips for f in findings] == [("walk_left",)]
+    assert "its root joint is named 'walk_left', the set's 'Hips'" in findings[0].message
+
+
 def test_inconsistent_skeleton_without_the_hierarchy_compares_names() -> None:
     """A view built without parents (a studio's own test space) is not all reported."""
     from dataclasses import replace

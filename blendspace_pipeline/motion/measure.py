@@ -333,7 +333,10 @@ def _features(positions: FloatArray, heading: FloatArray, fps: float) -> dict[st
     ground_speed = float(np.hypot(forward, lateral))
     # A clip that does not travel has no direction of travel: the angle of its drift (an in-place
     # run's 4e-6 m/s read -90, a strafe) would be a number of noise. 0, as straight ahead.
-    direction = float(np.degrees(np.arctan2(lateral, forward))) if ground_speed >= NO_TRAVEL_SPEED else 0.0
+    # (+ 0.0: no -0.0 in the JSON of a mirrored straight walk.)
+    direction = (
+        float(np.degrees(np.arctan2(lateral, forward))) + 0.0 if ground_speed >= NO_TRAVEL_SPEED else 0.0
+    )
     # The range is (-180, 180]: straight back reads 180, also when it is -179.9999999 and would
     # print as -180 (the document keeps 6 decimals; identical takes read -180.0 and 180.0).
     if direction <= -180.0 + DIRECTION_FOLD:

@@ -111,7 +111,7 @@ def _reflect_rotation(q: FloatArray, normal: FloatArray) -> FloatArray:
     return np.concatenate([-reflected, q[..., 3:]], axis=-1)
 
 
-def bind_rotations(clip: Clip, settings: RigSettings, up: FloatArray) -> FloatArray:
+def bind_rotations(clip: Clip, settings: RigSettings, up_axis: str) -> FloatArray:
     """World rest rotations, expressed in the rest pose's own facing frame.
 
     The rest pose may face anywhere (a root joint turned 90 degrees, a Z-up export); only the
@@ -125,8 +125,12 @@ def bind_rotations(clip: Clip, settings: RigSettings, up: FloatArray) -> FloatAr
         translations=skeleton.rest_translations[None].copy(),
     )
     rotations, _ = forward_kinematics(rest)
-    heading = float(decompose(rest, settings).heading[0])
-    unturn = quat.conjugate(quat.from_axis_angle(up, heading))
+    # The clip's own up axis, not one read from the rest pose: a Z-up BVH whose hierarchy stands
+    # along Y (its root's rotation lays it into Z) has a rest pose that reads Y-up, and the mirror
+    # came out upside down and unmirrored.
+    rest_motion = decompose(rest, replace(settings, up=up_axis))
+    heading = float(rest_motion.heading[0])
+    unturn = quat.conjugate(quat.from_axis_angle(rest_motion.up, heading))
     return quat.multiply(unturn[None], rotations[0])
 
 
@@ -144,7 +148,7 @@ def mirror_clip(
     # The bind pose turned to face where the character faces at frame 0, so its own sagittal
     # plane is the plane of the reflection.
     bind_rot = quat.multiply(
-        quat.from_axis_angle(motion.up, h0)[None], bind_rotations(clip, settings, motion.up)
+        quat.from_axis_angle(motion.up, h0)[None], bind_rotations(clip, settings, motion.up_axis)
     )
 
     source_rot = world_rot[:, partner]
