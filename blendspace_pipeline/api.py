@@ -119,6 +119,8 @@ class SampleView:
     contacts: Mapping[str, tuple[tuple[float, float], ...]] | None = None
     # Stride phase (0..1) at which each foot plants, None without a gait or contacts.
     plant_phases: Mapping[str, float] | None = None
+    # Stepping with no whole stride measured: turn and direction keep the pelvis sway.
+    partial_stride: bool = False
 
     def __post_init__(self) -> None:
         # Frozen dataclasses only stop attribute assignment; the mappings need freezing too.

@@ -176,6 +176,28 @@ def _exit_now(code: int) -> NoReturn:
     os._exit(code)
 
 
+# Variables whose value must be a whole number, and what they are for (their hint).
+WHOLE_NUMBER_VARIABLES = {
+    "SOURCE_DATE_EPOCH": "seconds since 1970, as `git log -1 --format=%ct` prints them",
+    "BLENDSPACE_MAX_FRAMES": "the most frames a clip may have (default 100000)",
+}
+
+
+def check_environment() -> None:
+    """A setting read from the environment that is not a whole number is bad input (exit 2), said
+    before the command runs: `SOURCE_DATE_EPOCH=1.5e9` crashed numpy's import (exit 3) when not
+    served and was ignored when served, and `BLENDSPACE_MAX_FRAMES=abc` was ignored."""
+    from blendspace_pipeline.errors import InputError
+
+    for name, meaning in WHOLE_NUMBER_VARIABLES.items():
+        value = os.environ.get(name)
+        if value is not None and value.strip() and not value.strip().isdigit():
+            raise InputError(
+                f"{name}={value!r} is not a whole number",
+                hint=f"set it to {meaning}, or unset it",
+            )
+
+
 def run_here(words: list[str]) -> int:
     """Run the command in this process (also what the build server's forked process calls)."""
     from blendspace_pipeline.errors import EXIT_INPUT, EXIT_INTERNAL, InputError, printable
@@ -183,6 +205,7 @@ def run_here(words: list[str]) -> int:
     try:
         parser = build_parser(_chosen_command(words), lazy=True)
         args = parser.parse_args(words)
+        check_environment()
         result: int = args.handler(args)
         return result
     except SystemExit as stop:

@@ -42,3 +42,38 @@ def test_the_exit_status_is_the_command_s(tmp_path: Path) -> None:
     done = _command("check", str(manifest))
     assert done.returncode == 2
     assert b"clipz" in done.stderr
+
+
+def test_a_setting_in_the_environment_that_is_not_a_whole_number_is_bad_input(tmp_path: Path) -> None:
+    """`SOURCE_DATE_EPOCH=1.5e9` ended `check` with exit 3 (numpy's import reads it) and was
+    ignored by a served command; `BLENDSPACE_MAX_FRAMES=abc` was ignored. Both are exit 2 naming
+    the variable, in a process of the command's own (as a user runs it)."""
+    manifest = Path(__file__).parent.parent / "sample_project" / "manifest.yaml"
+    for name, value in (
+        ("SOURCE_DATE_EPOCH", "1.5e9"),
+        ("SOURCE_DATE_EPOCH", "abc"),
+        ("BLENDSPACE_MAX_FRAMES", "abc"),
+    ):
+        env = {**os.environ, "BLENDSPACE_NO_SERVER": "1", "BLENDSPACE_CACHE_DIR": str(tmp_path), name: value}
+        done = subprocess.run(
+            [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest)],
+            capture_output=True,
+            env=env,
+            timeout=120,
+        )
+        err = done.stderr.decode()
+        assert done.returncode == 2, err
+        assert err.startswith(f"{name}={value!r} is not a whole number") and "Traceback" not in err
+    env = {
+        **os.environ,
+        "BLENDSPACE_NO_SERVER": "1",
+        "BLENDSPACE_CACHE_DIR": str(tmp_path),
+        "SOURCE_DATE_EPOCH": "1700000000",
+    }
+    done = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "check", str(manifest)],
+        capture_output=True,
+        env=env,
+        timeout=120,
+    )
+    assert done.returncode in (0, 1), done.stderr.decode()

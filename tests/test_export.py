@@ -825,6 +825,48 @@ def test_export_command_out_to_a_new_path_without_an_extension_is_a_folder(
     assert file_name.is_file()  # a path with an extension is the file, as before
 
 
+@pytest.mark.parametrize(
+    ("engine", "name", "content"),
+    [
+        ("unreal", "manifest.yaml", "schema_version: 1\nname: loco\n"),  # the reviewer's case
+        ("godot", "loco.blendspace.json", None),  # the export's own input
+        ("godot", "loco.controller", None),  # another engine's extension, new file
+        ("godot", "material.tres", '[gd_resource type="StandardMaterial3D" format=3]\n'),
+        ("unity", "Player.controller", "%YAML 1.1\n--- !u!1 &1\nGameObject:\n"),
+        ("unreal", "tools_unreal.py", "print('a studio script')\n"),
+    ],
+)
+def test_export_command_never_replaces_a_file_that_is_not_an_export(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], engine: str, name: str, content: str | None
+) -> None:
+    """`export --out manifest.yaml` replaced the manifest with an Unreal script (exit 0). An
+    existing --out must be this engine's blend-space file, and a new one must have its
+    extension; otherwise exit 2 and nothing is written."""
+    path = _write(make_doc(LAYOUT), tmp_path)
+    target = tmp_path / name
+    if content is not None:
+        target.write_text(content, encoding="utf-8")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["export", str(path), "--engine", engine, "--out", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and ("is an existing file that is not" in err or "export is a" in err), err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+@pytest.mark.parametrize("engine", ["godot", "unity", "unreal"])
+def test_export_command_replaces_its_own_file_and_an_engine_saved_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], engine: str
+) -> None:
+    path = _write(make_doc(LAYOUT), tmp_path)
+    assert main(["export", str(path), "--engine", engine]) == 0
+    assert main(["export", str(path), "--engine", engine]) == 0
+    assert "replaced the previous file" in capsys.readouterr().out
+    if engine == "godot":  # a blend space Godot's editor saved, uid and all
+        saved = tmp_path / "saved.tres"
+        saved.write_text('[gd_resource type="AnimationNodeBlendSpace2D" format=3 uid="uid://b1"]\n', "utf-8")
+        assert main(["export", str(path), "--engine", engine, "--out", str(saved)]) == 0
+
+
 def test_export_command_turns_write_failures_into_input_errors(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -101,6 +101,27 @@ def test_a_rebuild_switches_the_whole_set_and_keeps_the_spec_paths(
     assert clips and all(p.is_file() and not p.is_symlink() for p in clips)
 
 
+def test_two_manifests_of_one_space_name_into_one_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`build a.yaml b.yaml`, both `name: t` into one folder: b's build replaced a's outputs and
+    removed a's generated clips, exit by the findings only. Now b is exit 2 before it writes,
+    a's outputs stay, and a third manifest after it is still built."""
+    manifest = _project(tmp_path / "p")
+    other = manifest.with_name("b.yaml")
+    other.write_text(manifest.read_text(encoding="utf-8").replace("divisions: 100", "divisions: 50"), "utf-8")
+    third = manifest.with_name("c.yaml")
+    third.write_text(manifest.read_text(encoding="utf-8").replace("name: t", "name: u"), "utf-8")
+    out = tmp_path / "p" / "build"
+    assert main(["build", str(manifest), str(other), str(third)]) == 2
+    err = capsys.readouterr().err
+    assert f"{other}: builds 't' into {out}, as {manifest} does: its outputs would replace those" in err
+    doc = json.loads((out / "t.blendspace.json").read_text(encoding="utf-8"))
+    assert doc["axes"][0]["divisions"] == 100  # a's
+    assert (out / "u.blendspace.json").is_file()
+    assert sorted(p.name for p in (out / "clips").iterdir())  # a's generated clips are still there
+
+
 def test_an_old_build_of_real_files_is_replaced_by_the_set(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

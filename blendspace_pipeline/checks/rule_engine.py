@@ -331,6 +331,7 @@ def sample_view(
         if m.contacts is not None
         else None,
         plant_phases=m.plant_phases,
+        partial_stride=m.partial_stride,
     )
 
 

@@ -63,9 +63,11 @@ def _run(args: argparse.Namespace, inputs: list[Path], outputs: list[Path]) -> i
     # the other formats print each manifest as it is built.
     sarif: list[Diagnostic] = []
     spaces: list[BlendSpace] = []
+    claimed: dict[tuple[str, str], Path] = {}  # (output folder, space name) -> the manifest building it
     for manifest in args.manifests:
         # A manifest that cannot be built is reported and the others are still built.
         try:
+            _claim_outputs(manifest, args.out, claimed)
             result = build(
                 manifest, args.out, jobs=args.jobs, progress=terminal_progress(), fix=not args.no_fix
             )
@@ -100,3 +102,28 @@ def _run(args: argparse.Namespace, inputs: list[Path], outputs: list[Path]) -> i
     if args.format == "sarif":
         emit(args.format, sarif, "", spaces=spaces)
     return worst
+
+
+def _claim_outputs(manifest: Path, out: Path | None, claimed: dict[tuple[str, str], Path]) -> None:
+    """Two manifests of one command that build the same space name into the same folder would
+    replace each other's outputs (the second's build removed the first's generated clips): the
+    second is bad input (exit 2), before it writes anything. A manifest that does not load is
+    left to its build, which says why."""
+    import os
+
+    from blendspace_pipeline.manifest.loader import load_manifest
+    from blendspace_pipeline.pipeline.outputs import output_folder
+
+    try:
+        loaded = load_manifest(manifest)
+    except InputError:
+        return
+    folder = output_folder(loaded, out)
+    key = (os.path.normcase(os.path.abspath(folder)), loaded.model.name.casefold())
+    first = claimed.setdefault(key, manifest)
+    if first != manifest:
+        raise InputError(
+            f"builds {loaded.model.name!r} into {folder}, as {first} does: its outputs would replace those",
+            path=manifest,
+            hint="give one of the two manifests its own `name:` or `output.dir`",
+        )

@@ -10,6 +10,7 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from types import ModuleType
 
 from blendspace_pipeline.errors import EXIT_OK, InputError
 from blendspace_pipeline.exporters import ENGINES, Export, ExportContext, adapter, export, write_export
@@ -53,9 +54,11 @@ def run(args: argparse.Namespace) -> int:
             f"--unity-project {project} is not a folder",
             hint="pass the Unity project folder (the one with Assets/)",
         )
-    suffix: str = adapter(args.engine).SUFFIX
+    module = adapter(args.engine)
+    suffix: str = module.SUFFIX
     target = output_path(args.out, path.parent / f"{doc.name}{suffix}")
     replaced = target.exists()
+    _check_target(target, args.engine, module, replaced)
     context = ExportContext(
         previous=_previous(target) if replaced else None,
         target=target,
@@ -74,6 +77,26 @@ def run(args: argparse.Namespace) -> int:
         raise _cannot_write(target, error) from None
     _print_notes(result, target, replaced)
     return EXIT_OK
+
+
+def _check_target(target: Path, engine: str, module: ModuleType, exists: bool) -> None:
+    """An export never replaces a file that is not one (`--out manifest.yaml` turned the manifest
+    into an Unreal script, exit 0), nor writes an engine's file under another engine's extension
+    (a Godot resource in a `.controller`). Both are exit 2 before anything is written."""
+    extension = "." + module.SUFFIX.rsplit(".", 1)[-1]  # ".tres"; Path(".tres").suffix is ""
+    if target.suffix.lower() != extension:
+        raise InputError(
+            f"--out {target}: a {engine} export is a {extension} file",
+            hint=f"give --out a name ending in {extension}, or a folder",
+        )
+    if not exists:
+        return
+    text = _previous(target)
+    if text is None or not module.replaceable(text):
+        raise InputError(
+            f"--out {target} is an existing file that is not {module.REPLACES}: the export would replace it",
+            hint="choose another --out, or move that file away first",
+        )
 
 
 def clip_files(doc: BlendSpaceDocument, folder: Path) -> dict[str, list[Path]]:

@@ -38,6 +38,15 @@ CONVENTION = Convention(
     handedness="right-handed, Y up, metres, radians",
 )
 SUFFIX = ".tres"
+REPLACES = "a Godot resource holding a blend space"  # what an existing --out may be (`replaceable`); anything else is refused
+
+
+def replaceable(text: str) -> bool:
+    """Whether an existing --out file is this engine's file of a blend space, one a re-export
+    may replace (keeping what the engine added to it); any other file is the user's."""
+    return text.lstrip("\ufeff").startswith("[gd_resource") and "AnimationNodeBlendSpace" in text
+
+
 LAYER_ADVICE = (
     "build them in an AnimationNodeBlendTree: a second BlendSpace2D mixed by an AnimationNodeBlend2 "
     "for beta, a BlendSpace1D over speed mixed by a Blend2 with a bone filter for a style"

@@ -40,6 +40,17 @@ CONVENTION = Convention(
     handedness="left-handed, Y up, metres, degrees",
 )
 SUFFIX = ".controller"
+REPLACES = (
+    "a Unity animator controller"  # what an existing --out may be (`replaceable`); anything else is refused
+)
+
+
+def replaceable(text: str) -> bool:
+    """Whether an existing --out file is this engine's file of a blend space, one a re-export
+    may replace (keeping what the engine added to it); any other file is the user's."""
+    return text.lstrip("\ufeff").startswith("%YAML") and "AnimatorController:" in text
+
+
 LAYER_ADVICE = (
     "add them as Animator layers: a beta space as a second 2D blend tree mixed in a parent Simple 1D tree, "
     "a style as an override layer with an Avatar Mask for its joints"

@@ -30,6 +30,17 @@ CONVENTION = Convention(
     handedness="left-handed, Z up, centimetres, degrees",
 )
 SUFFIX = "_unreal.py"
+REPLACES = (
+    "a script this tool wrote"  # what an existing --out may be (`replaceable`); anything else is refused
+)
+
+
+def replaceable(text: str) -> bool:
+    """Whether an existing --out file is this engine's file of a blend space, one a re-export
+    may replace (keeping what the engine added to it); any other file is the user's."""
+    return "Written by blendspace-pipeline" in text
+
+
 LAYER_ADVICE = (
     "build them in the Animation Blueprint: a second Blend Space mixed by a Blend node (alpha = beta), "
     "a Blend Space 1D over speed mixed by Layered Blend per Bone for a style"

@@ -21,7 +21,7 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts
-from blendspace_pipeline.motion.clip_ops.phase import detect_cycle, foot_signal
+from blendspace_pipeline.motion.clip_ops.phase import FootSignal, GaitCycle, detect_cycle, foot_signal
 from blendspace_pipeline.motion.clip_ops.sway import stride_starts, sway_free
 from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
@@ -75,6 +75,8 @@ class Measurement:
     range_used: tuple[float, float] | None = None
     # `skeleton_key`: clips of one rig must agree on the up axis and unit they were read with.
     skeleton_key: str = ""
+    # Stepping with no whole stride measured: the pelvis sway stays in turn and direction.
+    partial_stride: bool = False
 
     def __post_init__(self) -> None:
         # The cache stores measurements as JSON (`pipeline.cache`): rebuild the nested values.
@@ -200,9 +202,19 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     )
     cycle = detect_cycle(used, settings, posed, found=found)
     # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
-    heading = sway_free(heading, used, settings, posed, cycle, positions, found=found)
-    features = _features(positions, heading, used.fps)
+    steady = sway_free(heading, used, settings, posed, cycle, positions, found=found)
+    features = _features(positions, steady, used.fps)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
+    # Stepping, but no whole stride to average the sway over (a short clip or `range:`): the
+    # turn and direction keep the pelvis yaw, several deg/s on a fraction of a stride.
+    partial_stride = (
+        steady is heading and _steps(found) and not _whole_stride(used, settings, posed, found, cycle)
+    )
+    if partial_stride:
+        notes.append(
+            f"the measured {features['duration']:.2f} s hold no whole stride: the turn and direction "
+            "keep the pelvis sway"
+        )
     contacts = clip_contacts(used, settings, world_pos, meters_per_unit=meters_per_unit, up_axis=up_axis)
     phases = (
         plant_phases(contacts, cycle.phase, used.fps) if contacts is not None and cycle is not None else None
@@ -227,7 +239,36 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         guesses=guesses,
         range_used=range_used if (explicit is not None or auto or first > 0) else None,
         skeleton_key=skeleton_key(clip),
+        partial_stride=partial_stride,
     )
+
+
+# The feet pass each other by this fraction of the leg's length at least: a step, not a shuffle.
+_STEP_REACH = 0.3
+
+
+def _whole_stride(
+    clip: Clip,
+    settings: RigSettings,
+    posed: tuple[FloatArray, FloatArray],
+    found: FootSignal,
+    cycle: GaitCycle | None,
+) -> bool:
+    """Whether ``clip`` holds a whole stride: one gait period (a loop of exactly one cycle, over
+    which the sway cancels as it is), or two crossings of the feet (a take whose rhythm is too
+    uneven for one period)."""
+    if cycle is not None and (clip.frame_count - 1) / clip.fps >= cycle.period - 1.5 / clip.fps:
+        return True
+    starts = stride_starts(clip, settings, posed, found=found)
+    return starts is not None and len(starts[0]) >= 2
+
+
+def _steps(found: FootSignal) -> bool:
+    """Whether the feet step (pass each other along the facing by a real step's length)."""
+    if found is None:
+        return False
+    signal, leg, _ = found
+    return bool(len(signal) and leg > 0.0 and float(np.ptp(signal)) >= _STEP_REACH * leg)
 
 
 def skeleton_key(clip: Clip) -> str:

@@ -55,6 +55,7 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.manifest import LoadedManifest
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
@@ -91,10 +92,15 @@ class BuildResult:
 
 
 def output_dir(space: BlendSpace, out: Path | None) -> Path:
+    return output_folder(space.manifest, out)
+
+
+def output_folder(loaded: LoadedManifest, out: Path | None) -> Path:
+    """Where ``loaded``'s outputs go: ``out`` (--out) when given, else its `output.dir`."""
     if out is not None:
         return out
-    configured = Path(space.manifest.model.output.dir.replace("\\", "/"))
-    return configured if configured.is_absolute() else space.manifest.directory / configured
+    configured = Path(loaded.model.output.dir.replace("\\", "/"))
+    return configured if configured.is_absolute() else loaded.directory / configured
 
 
 def _write_json(doc: BlendSpaceDocument, path: Path) -> None:
