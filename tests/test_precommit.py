@@ -276,3 +276,47 @@ def test_changed_files_map_to_the_manifests_that_read_them(tmp_path: Path) -> No
     assert chosen("clips/walk_left.usda") == [main_manifest.name]
     assert chosen("clips/walk_left.usda", "clips/extra.gltf") == [main_manifest.name, "second.yaml"]
     assert chosen("ci.yaml", "README.md") == []
+
+
+def test_a_deleted_clip_selects_the_manifests_that_named_it(tmp_path: Path) -> None:
+    """`check --changed clips/walk_left.usda` after deleting it said "no manifest uses the changed
+    files" (exit 0); a plain `check` of the manifest is exit 2 ("not found"). A deleted file
+    selects the manifests whose entries name it, explicitly or by a glob, and so `check` fails."""
+    from blendspace_pipeline.commands._changed import manifests_for
+
+    assets = asset_repo(tmp_path / "assets", GOOD)
+    globbed = assets / "globbed.yaml"
+    globbed.write_text("schema_version: 1\nname: g\nclips:\n  - path: clips/*.usda\n", encoding="utf-8")
+    elsewhere = assets / "elsewhere.yaml"
+    elsewhere.write_text("schema_version: 1\nname: e\nclips:\n  - path: other/*.usda\n", encoding="utf-8")
+    (assets / "clips" / "walk_left.usda").unlink()
+    names = sorted(p.name for p in manifests_for([assets / "clips" / "walk_left.usda"], assets))
+    assert names == ["globbed.yaml", "locomotion.manifest.yaml"]
+    code = subprocess.run(
+        [sys.executable, "-m", "blendspace_pipeline", "check", "--changed", "clips/walk_left.usda"],
+        cwd=assets,
+        env={**os.environ, "BLENDSPACE_NO_SERVER": "1", "BLENDSPACE_CACHE_DIR": str(tmp_path / "cache")},
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT,
+    )
+    assert code.returncode == 2, code.stdout + code.stderr
+    assert "walk_left.usda" in code.stderr and "not found" in code.stderr
+
+
+def test_the_hook_fires_on_every_clip_format_the_tool_reads() -> None:
+    """The hook's `files:` pattern left FBX out, a documented clip format."""
+    import re
+
+    import yaml  # pre-commit's own dependency
+
+    from blendspace_pipeline.readers import supported_suffixes
+
+    hook = yaml.safe_load(
+        (Path(__file__).parent.parent / ".pre-commit-hooks.yaml").read_text(encoding="utf-8")
+    )
+    pattern = re.compile(hook[0]["files"])
+    for suffix in supported_suffixes():
+        assert pattern.search(f"clips/walk{suffix}"), suffix
+        assert pattern.search(f"clips/WALK{suffix.upper()}"), suffix
+    assert pattern.search("locomotion.yaml") and not pattern.search("README.md")

@@ -10,6 +10,7 @@ the current folder (pre-commit runs at the repository root): YAML files that say
 
 from __future__ import annotations
 
+import fnmatch
 import os
 import re
 from collections.abc import Iterable, Sequence
@@ -58,32 +59,45 @@ def _key(path: Path) -> Path:
         return Path(os.path.abspath(path))
 
 
-def inputs_of(manifest: Path, depth: int = 0) -> tuple[set[Path], set[Path]]:
-    """(every file ``manifest`` reads, its beta layers' manifests); just itself if it is invalid."""
+def inputs_of(manifest: Path, depth: int = 0) -> tuple[set[Path], set[Path], list[str]]:
+    """(every file ``manifest`` reads, its beta layers' manifests, the absolute path patterns its
+    clip entries name); just itself if it does not load. A clip list with a missing file still
+    names its patterns: a deleted clip is a change to the manifest that named it."""
     files = {_key(manifest)}
     layers: set[Path] = set()
+    patterns: list[str] = []
     try:
         loaded = load_manifest(manifest)
-        files |= {_key(f.path) for f in resolve_clip_files(loaded)}
-        for index, layer in enumerate(loaded.model.layers):
-            if isinstance(layer, StyleLayer):
-                entries = [ClipEntry(path=c) if isinstance(c, str) else c for c in layer.clips]
-                key = ("layers", index, "clips")
-                files |= {_key(f.path) for f in resolve_clip_files(loaded, entries=entries, key=key)}
-            elif isinstance(layer, BetaLayer) and depth < 8:
-                beta = loaded.directory / layer.manifest.replace("\\", "/")
-                layers.add(_key(beta))
-                files |= inputs_of(beta, depth + 1)[0]
     except InputError:
-        pass  # `check` reports it; a broken manifest still counts as reading itself
+        return files, layers, patterns  # `check` reports it; a broken manifest reads itself
+    lists: list[tuple[list[ClipEntry] | None, tuple[str | int, ...]]] = [(None, ("clips",))]
+    for index, layer in enumerate(loaded.model.layers):
+        if isinstance(layer, StyleLayer):
+            entries = [ClipEntry(path=c) if isinstance(c, str) else c for c in layer.clips]
+            lists.append((entries, ("layers", index, "clips")))
+        elif isinstance(layer, BetaLayer) and depth < 8:
+            beta = loaded.directory / layer.manifest.replace("\\", "/")
+            layers.add(_key(beta))
+            beta_files, _, beta_patterns = inputs_of(beta, depth + 1)
+            files |= beta_files
+            patterns += beta_patterns
+    for entries, key in lists:
+        named = loaded.model.clips if entries is None else entries
+        patterns += [os.path.abspath(loaded.directory / e.path.replace("\\", "/")) for e in named]
+        try:
+            files |= {_key(f.path) for f in resolve_clip_files(loaded, entries=entries, key=key)}
+        except InputError:
+            pass  # a missing clip: `check` reports it
     # A .gltf's buffer is usually `<stem>.bin` beside it (Blender's "glTF Separate" export).
     files |= {f.with_suffix(".bin") for f in files if f.suffix.lower() == ".gltf"}
-    return files, layers
+    return files, layers, patterns
 
 
 def manifests_for(changed: Sequence[Path], root: Path) -> list[Path]:
-    """The manifests to check for ``changed`` files, in a stable order."""
+    """The manifests to check for ``changed`` files, in a stable order. A changed file that is
+    gone (deleted, renamed away) selects the manifests whose clip entries name it."""
     wanted = {_key(p) for p in changed}
+    gone = [os.path.abspath(p) for p in changed if not os.path.lexists(p)]
     selected: dict[Path, Path] = {}
     layer_of_selected: set[Path] = set()
     candidates = find_manifests(root)
@@ -91,11 +105,18 @@ def manifests_for(changed: Sequence[Path], root: Path) -> list[Path]:
         p for p in changed if looks_like_manifest(p) and _key(p) not in {_key(c) for c in candidates}
     ]
     for manifest in candidates:
-        files, layers = inputs_of(manifest)
-        if files & wanted:
+        files, layers, patterns = inputs_of(manifest)
+        if files & wanted or any(_names(pattern, path) for pattern in patterns for path in gone):
             selected[_key(manifest)] = manifest
             layer_of_selected |= layers
     return [path for key, path in selected.items() if key not in layer_of_selected]
+
+
+def _names(pattern: str, path: str) -> bool:
+    """Whether a clip entry's absolute ``pattern`` (a path or a glob) names ``path``. Case folded
+    where the file system does (Windows); a `*` may match across folders here, which only checks
+    a manifest more often."""
+    return fnmatch.fnmatch(os.path.normcase(path), os.path.normcase(pattern))
 
 
 def relative_names(paths: Iterable[Path], root: Path) -> list[Path]:
