@@ -122,6 +122,43 @@ def test_two_manifests_of_one_space_name_into_one_folder(
     assert sorted(p.name for p in (out / "clips").iterdir())  # a's generated clips are still there
 
 
+def test_a_glob_over_the_output_s_own_clips_folder_does_not_read_them_back(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`output.dir: .` with `clips/*.usda`: the build's generated clips land in the folder the
+    glob reads. The next build that was not a replay read them as authored takes (generated
+    false), dropped their other formats and changed the JSON: two builds of the same inputs gave
+    two answers. They are the last build's outputs while they are the files it placed."""
+    root = tmp_path / "p"
+    manifest = _project(root)
+    manifest.write_text(manifest.read_text(encoding="utf-8") + "output: {dir: .}\n", encoding="utf-8")
+    assert main(["build", str(manifest)]) in (0, 1)
+    first = json.loads((root / "t.blendspace.json").read_text(encoding="utf-8"))
+    made = sorted(s["name"] for s in first["samples"] if s["generated"])
+    assert made, "the set must need a generated clip for this test"
+    for round_ in range(2):
+        os.utime(manifest)  # not a replay: the build runs
+        capsys.readouterr()
+        assert main(["build", str(manifest)]) in (0, 1)
+        again = json.loads((root / "t.blendspace.json").read_text(encoding="utf-8"))
+        assert sorted(s["name"] for s in again["samples"] if s["generated"]) == made, round_
+        assert [s["name"] for s in again["samples"]] == [s["name"] for s in first["samples"]]
+    capsys.readouterr()
+    assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
+    checked = json.loads(capsys.readouterr().out)
+    assert not any(d["clips"] and set(d["clips"]) & set(made) for d in checked["diagnostics"])
+    # A generated clip the user saved over is theirs: the next build reads it as a take.
+    taken = next((root / "clips").glob(f"{made[0]}.usda"))
+    content = taken.read_bytes()
+    taken.unlink()
+    taken.write_bytes(content)  # a new file with the same bytes: no longer the one placed
+    os.utime(manifest)
+    capsys.readouterr()
+    assert main(["build", str(manifest)]) in (0, 1)
+    doc = json.loads((root / "t.blendspace.json").read_text(encoding="utf-8"))
+    assert {s["name"]: s["generated"] for s in doc["samples"]}[made[0]] is False
+
+
 def test_an_old_build_of_real_files_is_replaced_by_the_set(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -10,6 +10,7 @@ the current folder (pre-commit runs at the repository root): YAML files that say
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import os
 import re
@@ -81,13 +82,11 @@ def inputs_of(manifest: Path, depth: int = 0) -> tuple[set[Path], set[Path], lis
             beta_files, _, beta_patterns = inputs_of(beta, depth + 1)
             files |= beta_files
             patterns += beta_patterns
-    for entries, key in lists:
-        named = loaded.model.clips if entries is None else entries
+    for listed, key in lists:
+        named = loaded.model.clips if listed is None else listed
         patterns += [os.path.abspath(loaded.directory / e.path.replace("\\", "/")) for e in named]
-        try:
-            files |= {_key(f.path) for f in resolve_clip_files(loaded, entries=entries, key=key)}
-        except InputError:
-            pass  # a missing clip: `check` reports it
+        with contextlib.suppress(InputError):  # a missing clip: `check` reports it
+            files |= {_key(f.path) for f in resolve_clip_files(loaded, entries=listed, key=key)}
     # A .gltf's buffer is usually `<stem>.bin` beside it (Blender's "glTF Separate" export).
     files |= {f.with_suffix(".bin") for f in files if f.suffix.lower() == ".gltf"}
     return files, layers, patterns

@@ -112,7 +112,7 @@ def _claim_outputs(manifest: Path, out: Path | None, claimed: dict[tuple[str, st
     import os
 
     from blendspace_pipeline.manifest.loader import load_manifest
-    from blendspace_pipeline.pipeline.outputs import output_folder
+    from blendspace_pipeline.pipeline.own_outputs import output_folder
 
     try:
         loaded = load_manifest(manifest)

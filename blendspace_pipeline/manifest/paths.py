@@ -101,6 +101,11 @@ def _absolute(loaded: LoadedManifest, text: str) -> Path:
     return Path(os.path.normpath(loaded.directory / text))
 
 
+def is_glob_entry(loaded: LoadedManifest, entry: ClipEntry) -> bool:
+    """Whether ``entry``'s path is a glob (not a file whose name has glob characters)."""
+    return _is_glob(loaded, entry)
+
+
 def _is_glob(loaded: LoadedManifest, entry: ClipEntry) -> bool:
     text = _pattern(entry)
     # A file really named `walk[1].bvh` is that file, not a character class.

@@ -16,6 +16,7 @@ from blendspace_pipeline.manifest import load_manifest
 from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.pipeline.layers import analyse_layers
 from blendspace_pipeline.pipeline.measure_stage import measure_files
+from blendspace_pipeline.pipeline.own_outputs import authored
 from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.space.model import BlendSpace, assemble
@@ -29,6 +30,7 @@ def analyse(
     with_layers: bool = True,
     converge: bool = True,
     on_placed: Callable[[BlendSpace], None] | None = None,
+    out: Path | None = None,
 ) -> BlendSpace:
     """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules.
 
@@ -36,9 +38,11 @@ def analyse(
     it to the end of the fix loop, whose last space is the one it reports.
     ``on_placed``: called with the space once it is placed, triangulated and has its layers,
     before the rules (`build` starts the blend quality maps there: `early_quality`).
+    ``out``: the build's --out (else the manifest's `output.dir`): the clips its last build placed
+    there are outputs, not takes, when a glob of `clips:` reaches them (`own_outputs.authored`).
     """
     loaded = load_manifest(manifest_path)
-    files = resolve_clip_files(loaded)
+    files = authored(loaded, resolve_clip_files(loaded), out)
     clips = measure_files(loaded, files, jobs=jobs, progress=progress)
     space = assemble(loaded, clips)
     if with_layers:

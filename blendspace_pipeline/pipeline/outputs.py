@@ -55,7 +55,6 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.manifest import LoadedManifest
 from blendspace_pipeline.motion.file_names import safe_file_stem
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
@@ -64,6 +63,7 @@ from blendspace_pipeline.pipeline.early_quality import EarlyQuality
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.forked import Children, Task, can_fork, run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
+from blendspace_pipeline.pipeline.own_outputs import CURRENT, GENERATIONS, PLACED, output_folder
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.report.atomic import verify_written
@@ -93,14 +93,6 @@ class BuildResult:
 
 def output_dir(space: BlendSpace, out: Path | None) -> Path:
     return output_folder(space.manifest, out)
-
-
-def output_folder(loaded: LoadedManifest, out: Path | None) -> Path:
-    """Where ``loaded``'s outputs go: ``out`` (--out) when given, else its `output.dir`."""
-    if out is not None:
-        return out
-    configured = Path(loaded.model.output.dir.replace("\\", "/"))
-    return configured if configured.is_absolute() else loaded.directory / configured
 
 
 def _write_json(doc: BlendSpaceDocument, path: Path) -> None:
@@ -539,8 +531,6 @@ def _write_one(
 
 
 STAGING_PREFIX = ".blendspace-staging-"
-GENERATIONS = ".blendspace"
-CURRENT = "current"
 _STALE_SECONDS = 3600  # a staging folder whose name carries no pid is stale after an hour
 
 
@@ -711,12 +701,6 @@ def _generated_here(target: Path, previous: Path) -> bool:
     return read_provenance(target) is not None
 
 
-# In a generation folder: the SHA-256 of each clip as it was placed in the output folder. The
-# placed clip is a hard link to the generation's file, so an edit in place changes both; this
-# record is what tells the next build that the clip is no longer the one it placed.
-PLACED = ".placed.json"
-
-
 def _drop_old_clips(
     out_dir: Path, previous: Path, wanted: set[Path], read: Callable[[], set[tuple[int, int]]]
 ) -> None:
@@ -824,7 +808,9 @@ def build(
 
     try:
         # With fixes on, placeholders are checked on the space the fix loop leaves (`apply_fixes`).
-        space = analyse(manifest, jobs=jobs, progress=progress, converge=not fix, on_placed=start_early)
+        space = analyse(
+            manifest, jobs=jobs, progress=progress, converge=not fix, on_placed=start_early, out=out
+        )
         fixes = FixState()
         layer_fixes: dict[str, FixState] = {}
         if fix:
