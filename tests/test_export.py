@@ -955,3 +955,33 @@ def _run_with_animation_library(
     monkeypatch.setitem(sys.modules, "unreal", unreal)
     exec(compile(script, "loco_unreal.py", "exec"), {"__name__": "__main__"})
     return record, calls, saved
+
+
+@pytest.mark.parametrize("engine", ["godot", "unity", "unreal"])
+def test_export_notes_each_take_measured_on_a_range_of_its_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], engine: str
+) -> None:
+    """Two `range:`s of one CMU take were exported as the whole take under two names, without a
+    word: the engine blends its start and stop too. Each trimmed take is noted with its span; a
+    whole take (its T-pose first frame left out or not) is not."""
+    take = shared_data("cmu", "131_01.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: cmu\nclips:\n"
+        f"  - {{path: '{take.as_posix()}', name: walk_a, range: [2.5, 6.0]}}\n"
+        f"  - {{path: '{take.as_posix()}', name: walk_a_early, range: [1.5, 3.0]}}\n"
+        f"  - {{path: '{shared_data('cmu', '131_02.bvh').as_posix()}', name: whole}}\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "build"
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+    capsys.readouterr()
+    assert main(["export", str(out / "cmu.blendspace.json"), "--engine", engine]) == 0
+    notes = [line for line in capsys.readouterr().err.splitlines() if "was measured on" in line]
+    label = {"godot": "Godot", "unity": "Unity", "unreal": "Unreal"}[engine]
+    assert notes == [
+        f"note: walk_a was measured on 2.50-6.00 s of 131_01.bvh: {label} plays the whole file unless "
+        "that span is imported as its own clip (or the file is cut to it)",
+        f"note: walk_a_early was measured on 1.50-3.00 s of 131_01.bvh: {label} plays the whole file "
+        "unless that span is imported as its own clip (or the file is cut to it)",
+    ]

@@ -70,6 +70,8 @@ class EngineSample:
     # Foot-down sync markers (name, seconds from the start of the clip's file: the measured range's
     # own times shifted by its `range:` start), for engines that sync by markers (Unreal).
     markers: tuple[tuple[str, float], ...] = ()
+    # The seconds of the source file the sample was measured on, when a `range:` trimmed it.
+    trim: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -178,6 +180,7 @@ def to_engine(doc: BlendSpaceDocument, convention: Convention, source: str = "")
             position=(rounded(s.position[0] * factors[0][0]), rounded(s.position[1] * factors[1][0])),
             generated=s.generated,
             markers=_markers(s),
+            trim=_trim(s),
         )
         for s in doc.samples
     ]
@@ -199,6 +202,16 @@ def _engine_axis(axis: AxisDoc, factor: float, unit: str, flipped: bool) -> Engi
 # --- what the engines cannot express ----------------------------------------------------------
 
 
+def _trim(sample: SampleDoc) -> tuple[float, float] | None:
+    """The span of its file a take was measured on, when a `range:` (or `range: auto`) chose one;
+    None for a whole take, also one whose first frame was left out as a T-pose."""
+    span = sample.clip.range
+    if not span or sample.generated:
+        return None
+    tpose_only = span[0] <= 1.5 / sample.clip.fps and any("rest/T-pose" in n for n in sample.clip.notes)
+    return None if tpose_only and not sample.clip.range_auto else (span[0], span[1])
+
+
 def common_notes(space: EngineSpace, convention: Convention, layer_advice: str) -> list[str]:
     notes = [_convention_note(space, convention)]
     if space.layer_names:
@@ -209,6 +222,15 @@ def common_notes(space: EngineSpace, convention: Convention, layer_advice: str) 
     outside = [s.name for s in space.samples if not _inside(s.position, space.axes)]
     if outside:
         notes.append(f"samples outside the axis ranges: {', '.join(outside)}")
+    for sample in space.samples:
+        if sample.trim is not None:
+            # The exports name clips, and engines play a clip file whole: a take measured over a
+            # `range:` (start, walk, stop) would blend its start and stop too.
+            notes.append(
+                f"{sample.name} was measured on {sample.trim[0]:.2f}-{sample.trim[1]:.2f} s of "
+                f"{Path(sample.source).name}: {convention.engine} plays the whole file unless that span is "
+                "imported as its own clip (or the file is cut to it)"
+            )
     generated = [s.name for s in space.samples if s.generated]
     if generated:
         notes.append(
