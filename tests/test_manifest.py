@@ -195,6 +195,27 @@ def test_wrong_type_says_what_was_expected_and_given(tmp_path: Path) -> None:
     assert error.hint is not None and "Grid intervals" in error.hint
 
 
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ("axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: true}\n",
+         "axes.x.divisions: expected a whole number, got true"),
+        ("axes:\n  x: {feature: turn_rate, min: '-180', max: 180, divisions: 72}\n",
+         "axes.x.min: expected a number, got the text '-180'"),
+        ("fixes: {mirror: 'off'}\n", "fixes.mirror: expected true or false, got the text 'off'"),
+        ("fixes: {axis_clips: 1}\n", "fixes.axis_clips: expected true or false, got the number 1"),
+        ("thresholds: {too_close: '5'}\n", "thresholds.too_close: expected a number, got the text '5'"),
+        ("skeleton: {units: true}\n", "skeleton.units: "),
+    ],
+)  # fmt: skip
+def test_yaml_types_are_kept(tmp_path: Path, extra: str, message: str) -> None:
+    """`divisions: true` was read as 1 division (every sample snapped to the axis ends), and a
+    quoted number or the text 'off' as a number or false: what the committed JSON Schema rejects,
+    the loader accepted. An int is still a number (`min: -180`)."""
+    error = load_error(tmp_path, MINIMAL + extra)
+    assert error.message.startswith(message), error.message
+
+
 def test_a_number_where_text_is_expected_hints_quotes(tmp_path: Path) -> None:
     error = load_error(tmp_path, "schema_version: 1\nname: 2024\nclips: [{path: a.bvh}]\n")
     assert where(error) == (2, 1)

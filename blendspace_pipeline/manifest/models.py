@@ -19,6 +19,7 @@ from pydantic import (
     NonNegativeFloat,
     PositiveFloat,
     PositiveInt,
+    Strict,
     field_validator,
     model_validator,
 )
@@ -45,7 +46,11 @@ FEATURES: tuple[FeatureName, ...] = (
     "duration",
 )
 Unit = Literal["auto", "m", "cm", "mm", "in"]
-Weight = Annotated[float, Field(ge=0.0, le=1.0)]
+# YAML gives numbers and booleans their own types: `divisions: true` is not 1, `min: "-3"` is not
+# a number and `mirror: "off"` not false (the committed JSON Schema says so; the models agree).
+Number = Annotated[float, Strict()]
+Flag = Annotated[bool, Strict()]
+Weight = Annotated[float, Strict(), Field(ge=0.0, le=1.0)]
 _SAFE_STEM = re.compile(r"[A-Za-z0-9_.\-]+")
 
 
@@ -86,7 +91,7 @@ class MirrorTokens(_Model):
 class SkeletonSettings(_Model):
     """How to read the rig; everything is auto-detected unless set here."""
 
-    units: Unit | PositiveFloat = Field(
+    units: Unit | Annotated[PositiveFloat, Strict()] = Field(
         default="auto",
         description="Length unit of the clip files: auto, m, cm, mm, in, or a number of metres per file unit "
         "(for unusual mocap units).",
@@ -126,16 +131,16 @@ class ClipEntry(_Model):
         description="Clip name; default the file stem ('<stem>/<animation>' for multi-animation files). "
         "A named glob must match exactly one file.",
     )
-    range: tuple[float, float] | Literal["auto"] | None = Field(
+    range: tuple[Number, Number] | Literal["auto"] | None = Field(
         default=None,
         description="Optional trim [start, end] in seconds (0 <= start < end), or auto: the steady "
         "locomotion part as whole gait cycles (T-pose, start from standing and stop left out).",
     )
-    expect: dict[FeatureName, float] | None = Field(
+    expect: dict[FeatureName, Number] | None = Field(
         default=None,
         description="Intended feature values, checked by the misalignment rule (e.g. {turn_rate: 0}).",
     )
-    position: tuple[float, float] | None = Field(
+    position: tuple[Number, Number] | None = Field(
         default=None,
         description="Hand placement [x, y] in axis units, compared with the measured one in the report.",
     )
@@ -183,9 +188,9 @@ class Axis(_Model):
     """One blend-space axis: the feature that drives it and its grid."""
 
     feature: FeatureName = Field(description="Measured feature that drives this axis.")
-    min: float = Field(description="Lower end of the axis, in the feature's unit.")
-    max: float = Field(description="Upper end of the axis, in the feature's unit; greater than min.")
-    divisions: PositiveInt = Field(
+    min: Number = Field(description="Lower end of the axis, in the feature's unit.")
+    max: Number = Field(description="Upper end of the axis, in the feature's unit; greater than min.")
+    divisions: Annotated[PositiveInt, Strict()] = Field(
         description="Grid intervals; positions snap to min + k*(max-min)/divisions."
     )
 
@@ -229,21 +234,21 @@ class Axes(_Model):
 class Thresholds(_Model):
     """Rule thresholds: distances in normalised axis space (each axis 0..100), angles in degrees."""
 
-    crossing_axis: NonNegativeFloat = Field(
+    crossing_axis: Annotated[NonNegativeFloat, Strict()] = Field(
         default=5.0,
         description="τχ: how far beyond a main axis an edge's end points may lie before it counts "
         "(the paper's value, Delicado & Pelechano 2019).",
     )
-    too_close: NonNegativeFloat = Field(
+    too_close: Annotated[NonNegativeFloat, Strict()] = Field(
         default=8.0,
         description="τd: samples closer than this are too close (the paper's value, Delicado & Pelechano 2019).",
     )
-    acute_angle: NonNegativeFloat = Field(
+    acute_angle: Annotated[NonNegativeFloat, Strict()] = Field(
         default=15.0,
         description="Triangles with an angle below this (deg) are acute. Our default, not the paper's "
         "(it gives no number): a 15° sliver has a long edge about 4x its height.",
     )
-    misalignment: NonNegativeFloat = Field(
+    misalignment: Annotated[NonNegativeFloat, Strict()] = Field(
         default=3.0,
         description="A clip whose measured position is off a main axis by at most this much is misaligned. "
         "Our default, not the paper's (it gives no number): below τχ, so a misaligned clip still "
@@ -270,16 +275,16 @@ class RuleSettings(_Model):
 class FixSettings(_Model):
     """Which automatic fixes a build applies (check never applies them)."""
 
-    mirror: bool = Field(
+    mirror: Flag = Field(
         default=True, description="Generate mirrored clips to fill the other side of the space."
     )
-    axis_clips: bool = Field(
+    axis_clips: Flag = Field(
         default=True, description="Generate clips on the main axes for crossing-axis edges."
     )
     too_close: Literal["report", "keep-representative", "merge"] = Field(
         default="report", description="What to do with samples that are too close."
     )
-    straighten: bool = Field(default=False, description="Straighten clips that are slightly off their axis.")
+    straighten: Flag = Field(default=False, description="Straighten clips that are slightly off their axis.")
 
 
 class Mask(_Model):
