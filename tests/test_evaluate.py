@@ -527,6 +527,8 @@ def test_eval_command_prints_text_and_json(tmp_path: Path, capsys: pytest.Captur
         (["--at", "x=0.1"], "must give both axes"),
         (["--at", "x=a,y=1"], "is not a number"),
         (["--at", "z=1,y=1"], "unknown axis 'z'"),
+        (["--at", "x=0,x=1,y=1"], "gives axis x twice"),  # the last x won
+        (["--at", "x=0,turn_rate=1,y=1"], "gives axis x twice"),
         (["--at", "x=0,y=0", "--layer", "drunkk=0.5"], "did you mean 'drunk'"),
         (["--at", "x=0,y=0", "--layer", "drunk"], "not NAME=VALUE"),
         (["--at", "x=0,y=0", "--layer", "drunk=0.5", "--layer", "drunk=0.7"], "--layer drunk is given twice"),

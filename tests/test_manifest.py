@@ -627,6 +627,22 @@ def test_missing_file_suggests_near_names(tmp_path: Path) -> None:
     )
 
 
+def test_missing_file_in_another_letter_case_names_the_file(tmp_path: Path) -> None:
+    """A manifest written on Windows (`Clips/Walk_Bwd.bvh`) fails on Linux CI: the folder does not
+    exist in that case, and the hint said only "the folder does not exist"."""
+    touch(tmp_path, "clips/walk_bwd.bvh", "clips/walk_fwd.bvh")
+    if (tmp_path / "CLIPS").exists():
+        pytest.skip("a case-insensitive file system: the file is found")
+    loaded = load_clips(tmp_path, "  - path: Clips/Walk_Bwd.bvh\n")
+    with pytest.raises(ManifestError) as caught:
+        resolve_clip_files(loaded)
+    assert caught.value.message == "clip file 'Clips/Walk_Bwd.bvh' not found"
+    assert caught.value.hint is not None
+    assert caught.value.hint.startswith(
+        "did you mean 'clips/walk_bwd.bvh'? The names differ in letter case only"
+    )
+
+
 def test_folder_given_as_a_clip_and_named_glob_of_many(tmp_path: Path) -> None:
     touch(tmp_path, "clips/a.bvh", "clips/b.bvh")
     loaded = load_clips(tmp_path, "  - path: clips\n")

@@ -254,11 +254,10 @@ def test_broken_entry_points_are_reported(
     code, found = check(manifest, capsys)
     messages = sorted(d["message"] for d in by_rule(found, "plugin-error"))
     assert len(messages) == 2, messages
-    assert f"entry point bad = {broken}" in messages[1] and "the render farm module is missing" in messages[1]
-    assert (
-        f"entry point not_a_rule = {plain}:VALUE" in messages[0]
-        and "neither a module nor a Rule" in messages[0]
-    )
+    bad = next(m for m in messages if f"entry point bad = {broken}" in m)
+    assert "the render farm module is missing" in bad
+    value = next(m for m in messages if f"entry point not_a_rule = {plain}:VALUE" in m)
+    assert "neither a module nor a Rule" in value
     assert by_rule(found, "misalignment"), "the built-in rules still ran"
     assert code == 1
 
@@ -286,6 +285,10 @@ def test_plugin_that_fails_to_import_is_a_diagnostic(
     [problem] = by_rule(found, "plugin-error")
     assert problem["code"] == "BS900" and problem["severity"] == "error"
     assert "house/broken_rules.py" in problem["message"] and expected in problem["message"]
+    # Where, in the plugin: "rule plugin plugin house/..." said neither which line nor said it once.
+    assert problem["message"].startswith("rule plugin house/broken_rules.py failed to import: ")
+    if "No module" not in expected:
+        assert problem["message"].endswith(f"{tmp_path / 'house' / 'broken_rules.py'}:1)")
     assert problem["hint"]
     assert problem["location"]["line"] == line_of(manifest, "plugins:")
     # The other plugin and the built-in rules still ran; the error fails the check.
@@ -353,7 +356,13 @@ def test_a_crashing_rule_does_not_stop_the_others(tmp_path: Path, capsys: pytest
     [crashed] = by_rule(found, "rule-crashed")
     assert crashed["code"] == "BS902" and crashed["severity"] == "error"
     assert "studio-crash" in crashed["message"] and "ZeroDivisionError" in crashed["message"]
-    assert "plugin house.py" in crashed["message"]  # where the rule came from
+    assert "(rule plugin house.py) crashed" in crashed["message"]  # where the rule came from
+    line = next(
+        i
+        for i, text in enumerate((tmp_path / "house.py").read_text().splitlines(), 1)
+        if "never reached" in text
+    )
+    assert crashed["message"].endswith(f"({tmp_path / 'house.py'}:{line})")  # and the line that raised
     assert (
         by_rule(found, "studio-fine") and by_rule(found, "misalignment") and by_rule(found, "in-place-clip")
     )
@@ -462,6 +471,21 @@ def test_unused_suppression_is_reported_at_its_clip(
     assert code == 0
     assert main(["check", str(manifest), "--strict"]) == 1
     capsys.readouterr()
+
+
+def test_an_ignore_of_a_rule_that_does_not_exist_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A typo in a clip's `ignore:` was only "reported nothing on it"; in `rules:` it is exit 2.
+    At the clip it is an `unknown-rule` warning with the nearest slug."""
+    manifest = write_project(tmp_path, entries={"idle": "ignore: [{rule: in-place-clp, reason: idle}]"})
+    _, found = check(manifest, capsys)
+    [typo] = by_rule(found, "unknown-rule")
+    assert typo["clips"] == ["idle"] and "ignores 'in-place-clp', which is not a rule" in typo["message"]
+    assert typo["hint"].startswith("did you mean 'in-place-clip'?")
+    assert typo["location"]["line"] == line_of(manifest, "clips/idle.usda")
+    assert not by_rule(found, "unused-suppression")
+    assert by_rule(found, "in-place-clip")  # not silenced by the typo
 
 
 def test_an_ignore_on_a_glob_entry_counts_for_the_entry(

@@ -23,6 +23,7 @@ from __future__ import annotations
 import difflib
 import importlib
 import importlib.util
+import inspect
 import math
 import numbers
 import os
@@ -170,22 +171,31 @@ def _engine_diagnostic(slug: str, message: str, hint: str | None = None) -> Diag
     )
 
 
-def _import_failure(origin: str, error: BaseException) -> Diagnostic:
+def _import_failure(origin: str, error: BaseException, path: Path | None = None) -> Diagnostic:
     last = traceback.format_exception_only(type(error), error)[-1].strip()
     return _engine_diagnostic(
         "plugin-error",
-        f"rule plugin {origin} failed to import: {last}",
+        f"{origin} failed to import: {last}{_where(error, path)}",
         hint="fix the plugin or remove it from `plugins:` / BLENDSPACE_RULE_PATH",
     )
+
+
+def _where(error: BaseException, path: Path | str | None) -> str:
+    """` (file:line)` of the plugin's own line that failed: a syntax error's, else the last frame
+    of the traceback inside ``path`` (the plugin's file). Empty when neither is known."""
+    if isinstance(error, SyntaxError) and error.filename and error.lineno:
+        return f" ({error.filename}:{error.lineno})"
+    if path is None:
+        return ""
+    inside = [f for f in traceback.extract_tb(error.__traceback__) if Path(f.filename) == Path(path)]
+    return f" ({inside[-1].filename}:{inside[-1].lineno})" if inside else ""
 
 
 def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
     module_name = f"blendspace_plugin_{abs(hash(str(path.resolve()))):x}_{path.stem}"
     spec = importlib.util.spec_from_file_location(module_name, path)
     if spec is None or spec.loader is None:
-        loaded.problems.append(
-            _engine_diagnostic("plugin-error", f"rule plugin {origin} is not a Python file")
-        )
+        loaded.problems.append(_engine_diagnostic("plugin-error", f"{origin} is not a Python file"))
         return
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module
@@ -198,7 +208,7 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
         raise
     except BaseException as error:  # even sys.exit: a broken plugin is a diagnostic, never a crash or an exit
         sys.modules.pop(module_name, None)
-        loaded.problems.append(_import_failure(origin, error))
+        loaded.problems.append(_import_failure(origin, error, path))
         return
     finally:
         sys.dont_write_bytecode = writes_bytecode
@@ -254,7 +264,7 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
             )
             continue
         for path in sorted(directory.glob("*.py")):
-            _load_path(path, loaded, f"{RULE_PATH_VARIABLE} {path}")
+            _load_path(path, loaded, f"rule file {path} (from {RULE_PATH_VARIABLE})")
     for plugin in plugins:
         candidate = Path(plugin.replace("\\", "/"))
         if not candidate.is_absolute() and base_dir is not None:
@@ -280,9 +290,9 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
                     )
                 )
                 continue
-            _load_path(candidate, loaded, f"plugin {plugin}")
+            _load_path(candidate, loaded, f"rule plugin {plugin}")
         else:
-            _load_module_name(plugin, loaded, f"plugin {plugin}")
+            _load_module_name(plugin, loaded, f"rule plugin {plugin}")
     return loaded
 
 
@@ -464,12 +474,17 @@ def run_rules(space: BlendSpace) -> None:
             made = [
                 _engine_diagnostic(
                     "rule-crashed",
-                    f"rule {slug} ({loaded.origins[slug]}) crashed: {type(error).__name__}: {error}",
+                    f"rule {slug} ({loaded.origins[slug]}) crashed: {type(error).__name__}: {error}"
+                    f"{_where(error, inspect.getsourcefile(rule_class))}",
                     hint="report this to the rule's author; the other rules ran",
                 )
             ]
         findings += made
-    findings = _apply_clip_ignores(space, findings)
+    # Which names are rules is known only with every plugin loaded (not with --no-plugins).
+    known = None
+    if not loaded.problems and not loaded.skipped:
+        known = set(loaded.rules) | set(loaded.by_code()) | set(ENGINE_CODES) | set(ENGINE_CODES.values())
+    findings = _apply_clip_ignores(space, findings, known)
     space.diagnostics = sorted(space.diagnostics + findings, key=Diagnostic.sort_key)
     space.placeholders = _unique_placeholders(space.diagnostics)
 
@@ -613,8 +628,12 @@ def _unique_placeholders(diagnostics: list[Diagnostic]) -> list[Placeholder]:
     return unique
 
 
-def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[Diagnostic]:
-    """Drop findings a clip's `ignore:` covers; report suppressions that matched nothing.
+def _apply_clip_ignores(
+    space: BlendSpace, findings: list[Diagnostic], known: set[str] | None
+) -> list[Diagnostic]:
+    """Drop findings a clip's `ignore:` covers; report suppressions that matched nothing, and
+    those that name no rule at all (``known``: every slug and code, None when a plugin did not
+    load) with the nearest one.
 
     An `ignore:` belongs to a manifest entry, and a glob entry covers many clips: it is in use
     when it suppressed a finding on any of them, and reported once per entry when it did not.
@@ -645,6 +664,22 @@ def _apply_clip_ignores(space: BlendSpace, findings: list[Diagnostic]) -> list[D
             whom = (
                 f"clip {names[0]!r}" if len(names) == 1 else f"the entry {entry.path!r} ({len(names)} clips)"
             )
+            if (
+                known is not None and ignore.rule not in known
+            ):  # a typo: in `rules:` it is exit 2, here a warning at the entry
+                close = difflib.get_close_matches(ignore.rule, sorted(known), n=1)
+                kept.append(
+                    replace(
+                        _engine_diagnostic(
+                            "unknown-rule",
+                            f"{whom} ignores {ignore.rule!r}, which is not a rule",
+                            hint=(f"did you mean {close[0]!r}? " if close else "")
+                            + "`blendspace rules` lists every rule",
+                        ),
+                        clips=(names[0],),
+                    )
+                )
+                continue
             kept.append(
                 replace(
                     _engine_diagnostic(

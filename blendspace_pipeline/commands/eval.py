@@ -168,6 +168,8 @@ def parse_at(text: str, doc: BlendSpaceDocument) -> tuple[float, float]:
         key, value = _key_value(part, "--at", _AT_HINT)
         if key not in aliases:
             raise UsageError(f"--at: unknown axis {key!r} (axes: {_axis_listing(doc)})", hint=_AT_HINT)
+        if aliases[key] in values:  # x=0,x=1 (or x=0,turn_rate=1): not "the last one wins"
+            raise UsageError(f"--at {text!r} gives axis {doc.axes[aliases[key]].name} twice", hint=_AT_HINT)
         values[aliases[key]] = _number(value, f"--at {key}", _AT_HINT)
     if set(values) != {0, 1}:
         raise UsageError(f"--at {text!r} must give both axes ({_axis_listing(doc)})", hint=_AT_HINT)

@@ -335,7 +335,9 @@ class OutputSettings(_Model):
     """Where and what a build writes."""
 
     dir: str = Field(default="build", description="Output folder, relative to the manifest.")
-    formats: list[OutputFormat] = Field(default_factory=_all_formats, description="Outputs to write.")
+    formats: list[OutputFormat] = Field(
+        default_factory=_all_formats, min_length=1, description="Outputs to write (at least one)."
+    )
     clip_formats: list[ClipFormat] = Field(
         default_factory=_all_clip_formats,
         min_length=1,

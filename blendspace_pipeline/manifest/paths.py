@@ -147,11 +147,21 @@ def _plain_file(loaded: LoadedManifest, text: str, key: KeyPath) -> Path:
             f"{text!r} is a folder, not a clip file",
             f"use a glob to take the clips in it, e.g. path: {text.rstrip('/')}/*.bvh",
         )
-    _fail(loaded, key, f"clip file {text!r} not found", _missing_hint(path))
+    _fail(loaded, key, f"clip file {text!r} not found", _missing_hint(path, loaded.directory))
 
 
-def _missing_hint(path: Path) -> str:
+def _missing_hint(path: Path, base: Path | None = None) -> str:
     folder = path.parent
+    other_case = _in_other_case(path)
+    if other_case is not None:
+        try:
+            shown = os.path.relpath(other_case, base).replace(os.sep, "/") if base else str(other_case)
+        except ValueError:  # another drive (Windows)
+            shown = str(other_case)
+        return (
+            f"did you mean {shown!r}? The names differ in letter case only: Linux (and CI) tell "
+            "them apart, Windows and macOS do not"
+        )
     if not folder.is_dir():
         existing = next((p for p in folder.parents if p.is_dir()), None)
         return f"the folder {folder} does not exist" + (
@@ -162,6 +172,27 @@ def _missing_hint(path: Path) -> str:
     if close:
         return f"did you mean {' or '.join(repr(n) for n in close)}? (looked in {folder})"
     return f"looked in {folder}, which holds: {_listing([folder / n for n in names]) or 'no files'}"
+
+
+def _in_other_case(path: Path) -> Path | None:
+    """The existing file ``path`` names up to letter case (`Clips/Walk.bvh` for `clips/walk.bvh`),
+    found from its nearest existing folder down, one unambiguous name at a time; else None."""
+    missing: list[str] = []
+    found = path
+    while not found.exists():
+        if found.parent == found:
+            return None
+        missing.append(found.name)
+        found = found.parent
+    for name in reversed(missing):
+        try:
+            matches = [entry for entry in os.listdir(found) if entry.casefold() == name.casefold()]
+        except OSError:
+            return None
+        if len(matches) != 1:
+            return None
+        found = found / matches[0]
+    return found if found.is_file() else None
 
 
 # A glob visits at most this many folder entries: a clip library is thousands of files, a symlink
