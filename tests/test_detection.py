@@ -429,3 +429,20 @@ def test_partial_stride_is_reported_on_a_short_range_of_real_mocap(
     found = [d for d in json.loads(capsys.readouterr().out)["diagnostics"] if d["rule"] == "partial-stride"]
     assert [(d["clips"], d["severity"], d["location"]["line"]) for d in found] == [(["short"], "warning", 4)]
     assert "0.40 s hold no whole stride" in found[0]["message"]
+
+
+@pytest.mark.parametrize(("stated", "legs"), [(0.01, "0.00"), (100.0, "8")])
+def test_a_file_unit_that_makes_the_legs_no_body_s_is_a_guess(stated: float, legs: str) -> None:
+    """A USD `metersPerUnit = 0.01` on a rig authored in metres read a walk at 0.014 m/s (an
+    `in-place-clip`), a GLB whose scale was applied twice at 140 m/s; nothing doubted the file. Its
+    unit is still used, and a `units` detection guess says what the legs measure and what the
+    body reads."""
+    clip = generate(GaitSpec("walk", speed=1.4, duration=1.0))
+    clip.meters_per_unit = stated  # what the file says; the rig is in metres
+    m = measure(clip, AUTO)
+    assert m.meters_per_unit == stated and m.units_source == "file"
+    [guess] = [g for g in m.guesses if g.what == "units"]
+    assert guess.value == f"{stated:.4g} m per unit (the file's)"
+    assert f"makes the legs {legs}" in guess.evidence and "the body reads 1 m per unit" in guess.evidence
+    clip.meters_per_unit = 1.0
+    assert not measure(clip, AUTO).guesses  # the file's right unit is not doubted

@@ -282,9 +282,10 @@ def test_generated_clips_a_build_no_longer_makes_leave_the_clips_folder(
 def test_a_generated_clip_the_build_reads_as_a_source_is_never_removed(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """`output.dir: .` and a `clips/*` glob adopt the mirror as a source; the manifest reaches it
-    through a symlinked folder (or another letter case on macOS): a `--no-fix` build read it, and
-    must not delete it."""
+    """`output.dir: .`: the user adopts the mirror as a take (its own `clips:` entry), and the
+    manifest reaches it through a symlinked folder (or another letter case on macOS): a `--no-fix`
+    build read it, and must not delete it. (A glob alone does not adopt it: that is the last
+    build's output, `test_a_glob_over_the_output_s_own_clips_folder_does_not_read_them_back`.)"""
     project = tmp_path / "p"
     manifest = _project(project)
     manifest.write_text(manifest.read_text(encoding="utf-8") + "output: {dir: .}\n", encoding="utf-8")
@@ -293,13 +294,30 @@ def test_a_generated_clip_the_build_reads_as_a_source_is_never_removed(
     assert mirror.is_file()
     (project / "Clips").symlink_to("clips")
     manifest.write_text(
-        manifest.read_text(encoding="utf-8").replace("path: clips/", "path: Clips/"), encoding="utf-8"
+        manifest.read_text(encoding="utf-8").replace(
+            "  - path: clips/*.usda\n", "  - path: Clips/*.usda\n  - path: Clips/turn_mirror.usda\n"
+        ),
+        encoding="utf-8",
     )
     assert main(["build", str(manifest), "--no-fix"]) in (0, 1)
     capsys.readouterr()
     assert mirror.is_file()
     doc = json.loads((project / "t.blendspace.json").read_text(encoding="utf-8"))
     assert "turn_mirror" in [s["name"] for s in doc["samples"]]
+
+
+def test_a_generated_clip_a_glob_reaches_is_an_output_a_no_fix_build_removes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    project = tmp_path / "p"
+    manifest = _project(project)
+    manifest.write_text(manifest.read_text(encoding="utf-8") + "output: {dir: .}\n", encoding="utf-8")
+    assert main(["build", str(manifest)]) in (0, 1)
+    assert (project / "clips" / "turn_mirror.usda").is_file()
+    assert main(["build", str(manifest), "--no-fix"]) in (0, 1)
+    capsys.readouterr()
+    assert not (project / "clips" / "turn_mirror.usda").exists()  # as from any other output folder
+    assert sorted(p.name for p in (project / "clips").iterdir()) == ["idle.usda", "turn.usda", "walk.usda"]
 
 
 def test_a_clip_another_blend_space_published_is_not_removed(

@@ -463,10 +463,10 @@ def resolve_units_guess(
         return float(settings.units), "manifest", None
     if settings.units in UNIT_METERS:
         return UNIT_METERS[str(settings.units)], "manifest", None
-    if clip.meters_per_unit is not None:
-        return clip.meters_per_unit, "file", None
     override = "skeleton: {units: <m|cm|mm|in or metres per unit>}"
     body = body_joints(clip, settings)
+    if clip.meters_per_unit is not None:
+        return clip.meters_per_unit, "file", _doubt_file_unit(clip, world_pos, body, override)
     if body is not None:
         legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
         leg = float(np.mean(legs))
@@ -479,6 +479,33 @@ def resolve_units_guess(
         return 1.0, "assumed metres", DetectionGuess("units", "m", "no body to size", override)
     reference = REFERENCE_HIP_HEIGHT - _LOWEST_JOINT_HEIGHT
     return _unit_from_length(height, reference, _PLAUSIBLE_HIP_HEIGHT, "hip height", override)
+
+
+# The file's unit stands unless it makes the legs this far from any body's (toddler to giant
+# creature, 0.1-5 m): a DCC export whose scale was applied twice or not at all (100x) is.
+_POSSIBLE_LEG = (0.1, 5.0)
+
+
+def _doubt_file_unit(
+    clip: Clip, world_pos: FloatArray, body: BodyJoints | None, override: str
+) -> DetectionGuess | None:
+    """A guess when the unit the file states (USD `metersPerUnit`, glTF metres) makes the legs
+    no body's: the file's unit is still used, and the finding names what the body reads."""
+    if body is None or clip.meters_per_unit is None:
+        return None
+    legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
+    leg = float(np.mean(legs)) * clip.meters_per_unit
+    low, high = _POSSIBLE_LEG
+    if leg <= 0.0 or low <= leg <= high:
+        return None
+    bodily = _unit_from_length(leg / clip.meters_per_unit, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg", override)
+    reads = f"; the body reads {bodily[0]:.4g} m per unit" if bodily[2] is None else ""
+    return DetectionGuess(
+        "units",
+        f"{clip.meters_per_unit:.4g} m per unit (the file's)",
+        f"the file's unit makes the legs {leg:.3g} m long{reads}",
+        override,
+    )
 
 
 def _unit_from_length(

@@ -184,7 +184,11 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     notes += [n for n in (up_note,) if n]
     notes += root.notes + facing.notes
     guesses += [g for g in (up_guess, units_guess, root.guess, facing.guess) if g is not None]
-    if units_guess is not None:
+    if units_guess is not None and units_source == "file":
+        notes.append(
+            f"{units_guess.evidence}: the file's {meters_per_unit:.4g} m per unit doubted; set `skeleton.units` to be sure"
+        )
+    elif units_guess is not None:
         notes.append(
             f"length unit guessed: {meters_per_unit:.4g} m per unit; set `skeleton.units` to be sure"
         )

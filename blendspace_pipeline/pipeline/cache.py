@@ -42,8 +42,10 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 6: an assumed facing of a track set without hierarchy (Godot) is a detection guess, and a clip
 # travelling under 1 mm/s has direction 0 (not the angle of its drift); 7: the joints' parents
 # (`joint_parents`), so `inconsistent-skeleton` sees another hierarchy; 8: the stride-sway fit
-# keeps the facing's mean (direction, forward and lateral speed were off by up to 17 deg).
-MEASUREMENT_REVISION = 8
+# keeps the facing's mean (direction, forward and lateral speed were off by up to 17 deg); 9: a
+# stepping clip with no whole stride says so (`partial_stride`), and a file's unit that makes the
+# legs no body's is a `units` guess.
+MEASUREMENT_REVISION = 9
 
 
 def cache_key(

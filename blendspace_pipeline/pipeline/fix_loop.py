@@ -261,7 +261,8 @@ class _Fixer:
         if new < old:
             return None
         return (
-            f"the space would not get better: errors {old[0]} → {new[0]}, warnings {old[1]} → {new[1]}, "
+            f"the space would not get better (at that step of the fixes): errors {old[0]} → {new[0]}, "
+            f"warnings {old[1]} → {new[1]}, "
             f"coverage {-old[2] * 100:.1f}% → {-new[2] * 100:.1f}%"
         )
 
