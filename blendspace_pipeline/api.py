@@ -107,8 +107,6 @@ class SampleView:
     in_place: bool = False
     units_guessed: bool = False
     joint_names: tuple[str, ...] = ()
-    # Each joint's parent, an index into `joint_names` (-1: a root); () when unknown.
-    joint_parents: tuple[int, ...] = ()
     notes: tuple[str, ...] = ()
     guesses: tuple[DetectionGuessView, ...] = ()
     # Same key: same joint names, hierarchy and rest offsets (one rig), so one up axis and unit.
@@ -121,6 +119,9 @@ class SampleView:
     plant_phases: Mapping[str, float] | None = None
     # Stepping with no whole stride measured: turn and direction keep the pelvis sway.
     partial_stride: bool = False
+    # Each joint's parent, an index into `joint_names` (-1: a root); () when unknown (a track set
+    # without hierarchy, a view built without it).
+    joint_parents: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         # Frozen dataclasses only stop attribute assignment; the mappings need freezing too.

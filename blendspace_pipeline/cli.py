@@ -176,24 +176,32 @@ def _exit_now(code: int) -> NoReturn:
     os._exit(code)
 
 
-# Variables whose value must be a whole number, and what they are for (their hint).
+# Variables whose value must be a whole number: (lowest, highest, what it is for: the hint).
 WHOLE_NUMBER_VARIABLES = {
-    "SOURCE_DATE_EPOCH": "seconds since 1970, as `git log -1 --format=%ct` prints them",
-    "BLENDSPACE_MAX_FRAMES": "the most frames a clip may have (default 100000)",
+    "SOURCE_DATE_EPOCH": (
+        0,
+        253_402_300_799,
+        "seconds since 1970 (not milliseconds), as `git log -1 --format=%ct` prints them",
+    ),
+    "BLENDSPACE_MAX_FRAMES": (1, 10**9, "the most frames a clip may have (default 100000)"),
 }
 
 
 def check_environment() -> None:
-    """A setting read from the environment that is not a whole number is bad input (exit 2), said
-    before the command runs: `SOURCE_DATE_EPOCH=1.5e9` crashed numpy's import (exit 3) when not
-    served and was ignored when served, and `BLENDSPACE_MAX_FRAMES=abc` was ignored."""
+    """A setting read from the environment that is not a whole number in its range is bad input
+    (exit 2), said before the command runs: `SOURCE_DATE_EPOCH=1.5e9` crashed numpy's import
+    (exit 3) when not served and was ignored when served, a value in milliseconds crashed the
+    report's date, and `BLENDSPACE_MAX_FRAMES=abc` was ignored."""
     from blendspace_pipeline.errors import InputError
 
-    for name, meaning in WHOLE_NUMBER_VARIABLES.items():
+    for name, (lowest, highest, meaning) in WHOLE_NUMBER_VARIABLES.items():
         value = os.environ.get(name)
-        if value is not None and value.strip() and not value.strip().isdigit():
+        if value is None or not value.strip():
+            continue
+        text = value.strip()
+        if not (text.isascii() and text.isdigit()) or not lowest <= int(text) <= highest:
             raise InputError(
-                f"{name}={value!r} is not a whole number",
+                f"{name}={value!r} is not a whole number from {lowest} to {highest}",
                 hint=f"set it to {meaning}, or unset it",
             )
 

@@ -54,7 +54,8 @@ class InconsistentSkeleton(Rule):
     """Blending needs one skeleton: the same joints, under the same parents, in the same order. A
     clip on another skeleton cannot be blended with the rest, mirrored against it, or interpolated
     (its blends are left out of the foot-skate map). A style or beta layer's clips are blended
-    joint by joint with the main space's, so they are held to the main set's skeleton too.
+    joint by joint with the main space's, so they are held to the main set's skeleton too. A clip
+    without a hierarchy (a Godot track set) is compared by its joint names.
     """
 
     slug = "inconsistent-skeleton"
@@ -63,22 +64,17 @@ class InconsistentSkeleton(Rule):
     summary = "clips whose joints differ from the rest of the set"
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
-        everyone = [
-            s
-            for s in [*space.samples, *(s for layer in space.layers for s in layer.samples)]
-            if s.joint_names
-        ]
-        # A view built without the hierarchy (a studio's test of its rule): joint names only, for all.
-        known = all(len(s.joint_parents) == len(s.joint_names) for s in everyone)
-        layout = {id(s): _layout(s, known) for s in everyone}
-        layouts = Counter(layout[id(s)] for s in space.samples if s.joint_names)
-        if not layouts:
+        named = [s for s in space.samples if s.joint_names]
+        if not named:
             return
-        common = layouts.most_common(1)[0][0]
-        for sample in space.samples:
-            if sample.joint_names and layout[id(sample)] != common:
+        names = Counter(s.joint_names for s in named).most_common(1)[0][0]
+        # The set's hierarchy: the most common one among the clips of its joint names that have one.
+        hierarchies = Counter(s.joint_parents for s in named if s.joint_names == names and _has_parents(s))
+        common = (names, hierarchies.most_common(1)[0][0] if hierarchies else None)
+        for sample in named:
+            if _differs(sample, common):
                 yield self.report(
-                    f"{sample.name} has a different skeleton ({_difference(layout[id(sample)], common)})",
+                    f"{sample.name} has a different skeleton ({_difference(sample, common)})",
                     clips=[sample.name],
                     position=sample.position,
                     hint="retarget the clip onto the set's skeleton before blending",
@@ -86,45 +82,54 @@ class InconsistentSkeleton(Rule):
         # A style or beta layer's poses are blended joint by joint with the main space's.
         for layer in space.layers:
             for sample in layer.samples:
-                if sample.joint_names and layout[id(sample)] != common:
+                if sample.joint_names and _differs(sample, common):
                     yield self.report(
                         f"{layer.kind} layer {layer.name!r}: {sample.name} has another skeleton than the "
-                        f"main space's clips ({_difference(layout[id(sample)], common)})",
+                        f"main space's clips ({_difference(sample, common)})",
                         clips=[sample.name],
                         hint="retarget the layer's clip onto the main space's skeleton",
                     )
 
 
-# (joint names, each joint's parent's name), in the clip's joint order; "" for a root, None where
-# the hierarchy is unknown.
-Layout = tuple[tuple[str, ...], tuple[str, ...] | None]
+# (joint names, parent indices or None where no clip of those names has a hierarchy).
+Layout = tuple[tuple[str, ...], tuple[int, ...] | None]
 
 
-def _layout(sample: SampleView, known: bool) -> Layout:
-    names, parents = sample.joint_names, sample.joint_parents
-    if not known:
-        return names, None
-    return names, tuple(names[p] if 0 <= p < len(names) else "" for p in parents)
+def _has_parents(sample: SampleView) -> bool:
+    return len(sample.joint_parents) == len(sample.joint_names)
 
 
-def _difference(layout: Layout, common: Layout) -> str:
+def _differs(sample: SampleView, common: Layout) -> bool:
+    """Other joints, or (both with a hierarchy) other parents; same names mean parent indices
+    compare as parent names do."""
+    names, parents = common
+    if sample.joint_names != names:
+        return True
+    return parents is not None and _has_parents(sample) and sample.joint_parents != parents
+
+
+def _parent_names(names: tuple[str, ...], parents: tuple[int, ...]) -> dict[str, str]:
+    return {name: names[p] if 0 <= p < len(names) else "" for name, p in zip(names, parents, strict=True)}
+
+
+def _difference(sample: SampleView, common: Layout) -> str:
     """What differs, in the order a TD fixes it: the joints, then where they hang, then their order."""
-    joints, parents = layout
-    usual, usual_parents = common
+    joints, usual = sample.joint_names, common[0]
     missing = sorted(set(usual) - set(joints))[:5]
     extra = sorted(set(joints) - set(usual))[:5]
-    if _root(layout) in extra and _root(common) in missing and len(missing) == len(extra) == 1:
+    here = _parent_names(joints, sample.joint_parents) if _has_parents(sample) else None
+    there = _parent_names(usual, common[1]) if common[1] is not None else None
+    roots = [_root(here), _root(there)]
+    if roots[0] in extra and roots[1] in missing and len(missing) == len(extra) == 1:
         # Blender names an FBX's armature node after the armature object (after the file, for an
         # imported BVH): engines bind by it (Unity's Generic curve paths, Unreal's root bone).
         return (
-            f"its root joint is named {_root(layout)!r}, the set's {_root(common)!r}; engines bind clips "
+            f"its root joint is named {roots[0]!r}, the set's {roots[1]!r}; engines bind clips "
             "by it, and a DCC's export often names it after the armature object: give every clip the same one"
         )
     if missing or extra or len(joints) != len(usual):
         return f"{len(joints)} joints vs {len(usual)}; missing {missing or '-'}, extra {extra or '-'}"
-    if parents is not None and usual_parents is not None:
-        here = dict(zip(joints, parents, strict=True))
-        there = dict(zip(usual, usual_parents, strict=True))
+    if here is not None and there is not None:
         moved = [name for name in usual if here[name] != there[name]]
         if moved:
             shown = "; ".join(
@@ -140,9 +145,8 @@ def _difference(layout: Layout, common: Layout) -> str:
     )
 
 
-def _root(layout: Layout) -> str | None:
-    """The first joint without a parent, when the layout knows the hierarchy."""
-    joints, parents = layout
+def _root(parents: dict[str, str] | None) -> str | None:
+    """The first joint without a parent, when the hierarchy is known."""
     if parents is None:
         return None
-    return next((name for name, parent in zip(joints, parents, strict=True) if parent == ""), None)
+    return next((name for name, parent in parents.items() if parent == ""), None)

@@ -52,7 +52,10 @@ def test_a_setting_in_the_environment_that_is_not_a_whole_number_is_bad_input(tm
     for name, value in (
         ("SOURCE_DATE_EPOCH", "1.5e9"),
         ("SOURCE_DATE_EPOCH", "abc"),
+        ("SOURCE_DATE_EPOCH", "1700000000000"),  # milliseconds: "year 55840 is out of range", exit 3
+        ("SOURCE_DATE_EPOCH", "\u00b2"),  # a digit to str.isdigit, not to int()
         ("BLENDSPACE_MAX_FRAMES", "abc"),
+        ("BLENDSPACE_MAX_FRAMES", "0"),  # was replaced by the default without a word
     ):
         env = {**os.environ, "BLENDSPACE_NO_SERVER": "1", "BLENDSPACE_CACHE_DIR": str(tmp_path), name: value}
         done = subprocess.run(

@@ -326,7 +326,7 @@ def test_cmu_range_auto_picks_the_walk(tmp_path: Path) -> None:
 )
 def test_shared_data_measures_without_overrides_or_says_so(relative: str) -> None:
     """Every shared clip reads as its SOURCES.md says (Y up; CMU ~0.056 m/unit; glTF and Godot
-    metres), and nothing is guessed silently. A Godot animation has tracks without the skeleton's
+    metres), and nothing is guessed silently (the Fox's 36.9 m legs in metres are said). A Godot animation has tracks without the skeleton's
     hierarchy: its facing is the root track's +Z by assumption, which the file cannot confirm
     (SOURCES.md: the strafes' sign "must be checked"), so that guess is said, with its override,
     and `skeleton.forward` settles it."""
@@ -342,6 +342,12 @@ def test_shared_data_measures_without_overrides_or_says_so(relative: str) -> Non
             assert [(g.what, g.value) for g in m.guesses] == [("facing", "root +z")]
             assert "skeleton: {forward: +z}" in m.guesses[0].override
             assert not measure(clip, RigSettings(forward="+z")).guesses
+        elif relative.endswith(".glb"):
+            # The sample fox's legs are 36.9 m in its file's metres (a Sketchfab export at 100x):
+            # the file's unit is used and doubted aloud; `skeleton.units` settles it.
+            assert [(g.what, g.value) for g in m.guesses] == [("units", "1 m per unit (the file's)")]
+            assert "legs 36.9 m long" in m.guesses[0].evidence
+            assert not measure(clip, RigSettings(units=1.0)).guesses
         else:
             assert not m.guesses
 

@@ -177,6 +177,14 @@ def test_unknown_key_names_the_path_suggests_and_lists_valid_keys(tmp_path: Path
     assert f"{error.path}:7:5: clips[2].rnage: unknown key 'rnage'" in error.render()
 
 
+def test_a_number_as_a_key_says_so(tmp_path: Path) -> None:
+    """`5: x` said "[5]: Keys should be strings" (pydantic's words) with no hint."""
+    error = load_error(tmp_path, MINIMAL + "5: x\n")
+    assert where(error) == (5, 1)
+    assert error.message == "[5]: a key must be a name, got the number 5"
+    assert error.hint is not None and error.hint.startswith("valid keys: schema_version, name, clips")
+
+
 def test_unknown_top_level_key(tmp_path: Path) -> None:
     error = load_error(tmp_path, MINIMAL + "thresolds: {too_close: 4}\n")
     assert where(error) == (5, 1)
@@ -449,7 +457,7 @@ def test_tab_indentation(tmp_path: Path) -> None:
         (
             "schema_version: true\n",
             (1, 1),
-            "unsupported schema_version True: this blendspace-pipeline reads version 1",
+            "unsupported schema_version true: this blendspace-pipeline reads version 1",  # YAML's word
         ),
     ],
 )

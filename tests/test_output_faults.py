@@ -120,6 +120,11 @@ def test_two_manifests_of_one_space_name_into_one_folder(
     assert doc["axes"][0]["divisions"] == 100  # a's
     assert (out / "u.blendspace.json").is_file()
     assert sorted(p.name for p in (out / "clips").iterdir())  # a's generated clips are still there
+    # The same manifest named twice (two spellings of one path) is one space, not a clash.
+    capsys.readouterr()
+    again = manifest.parent / ".." / manifest.parent.name / manifest.name
+    assert main(["build", str(manifest), str(again)]) in (0, 1)
+    assert "would replace" not in capsys.readouterr().err
 
 
 def test_a_glob_over_the_output_s_own_clips_folder_does_not_read_them_back(

@@ -292,6 +292,12 @@ def test_a_deleted_clip_selects_the_manifests_that_named_it(tmp_path: Path) -> N
     (assets / "clips" / "walk_left.usda").unlink()
     names = sorted(p.name for p in manifests_for([assets / "clips" / "walk_left.usda"], assets))
     assert names == ["globbed.yaml", "locomotion.manifest.yaml"]
+    # A file whose name has glob characters is named by itself too (fnmatch reads `[1]` as a class).
+    literal = assets / "literal.yaml"
+    literal.write_text(
+        "schema_version: 1\nname: l\nclips:\n  - path: 'takes/walk[1].usda'\n", encoding="utf-8"
+    )
+    assert [p.name for p in manifests_for([assets / "takes" / "walk[1].usda"], assets)] == ["literal.yaml"]
     code = subprocess.run(
         [sys.executable, "-m", "blendspace_pipeline", "check", "--changed", "clips/walk_left.usda"],
         cwd=assets,

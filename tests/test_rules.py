@@ -225,6 +225,17 @@ def test_inconsistent_skeleton_names_a_renamed_root() -> None:
     assert "its root joint is named 'walk_left', the set's 'Hips'" in findings[0].message
 
 
+def test_a_clip_without_hierarchy_is_compared_by_its_joint_names() -> None:
+    """A Godot track set has no hierarchy: its joints are not "all roots" (every joint was
+    reported as under no parent), and it does not switch the hierarchy check off for the rest."""
+    from dataclasses import replace
+
+    space = _on_skeletons({"walk_right": "reparented"})
+    samples = tuple(replace(s, joint_parents=()) if s.name == "walk_left" else s for s in space.samples)
+    findings = run_rule(InconsistentSkeleton, replace(space, samples=samples))
+    assert [f.clips for f in findings] == [("walk_right",)]
+
+
 def test_inconsistent_skeleton_without_the_hierarchy_compares_names() -> None:
     """A view built without parents (a studio's own test space) is not all reported."""
     from dataclasses import replace

@@ -115,7 +115,8 @@ def _names(pattern: str, path: str) -> bool:
     """Whether a clip entry's absolute ``pattern`` (a path or a glob) names ``path``. Case folded
     where the file system does (Windows); a `*` may match across folders here, which only checks
     a manifest more often."""
-    return fnmatch.fnmatch(os.path.normcase(path), os.path.normcase(pattern))
+    path, pattern = os.path.normcase(path), os.path.normcase(pattern)
+    return path == pattern or fnmatch.fnmatch(path, pattern)  # `walk[1].bvh` is also that file
 
 
 def relative_names(paths: Iterable[Path], root: Path) -> list[Path]:

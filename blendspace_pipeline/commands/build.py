@@ -121,7 +121,7 @@ def _claim_outputs(manifest: Path, out: Path | None, claimed: dict[tuple[str, st
     folder = output_folder(loaded, out)
     key = (os.path.normcase(os.path.abspath(folder)), loaded.model.name.casefold())
     first = claimed.setdefault(key, manifest)
-    if first != manifest:
+    if os.path.realpath(first) != os.path.realpath(manifest):  # the same file twice is one build
         raise InputError(
             f"builds {loaded.model.name!r} into {folder}, as {first} does: its outputs would replace those",
             path=manifest,

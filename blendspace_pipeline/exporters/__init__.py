@@ -203,14 +203,11 @@ def _engine_axis(axis: AxisDoc, factor: float, unit: str, flipped: bool) -> Engi
 
 
 def _trim(sample: SampleDoc) -> tuple[float, float] | None:
-    """The span of its file a take was measured on, when a `range:` (or `range: auto`) chose one;
-    None for a whole take, also one whose first frame was left out as a T-pose."""
+    """The span of its file a take was measured on: set only by a `range:` (or `range: auto`)."""
     clip = sample.clip
     if clip is None or not clip.range or sample.generated:
         return None
-    span = clip.range
-    tpose_only = span[0] <= 1.5 / clip.fps and any("rest/T-pose" in n for n in clip.notes)
-    return None if tpose_only and not clip.range_auto else (span[0], span[1])
+    return clip.range[0], clip.range[1]
 
 
 def common_notes(space: EngineSpace, convention: Convention, layer_advice: str) -> list[str]:

@@ -425,7 +425,8 @@ def _check_schema_version(raw: dict[Any, Any], tree: CommentedMap, path: Path) -
                 hint="write `schema_version: 1` without quotes",
             )
         raise ManifestError(
-            f"unsupported schema_version {version!r}: this blendspace-pipeline reads version 1",
+            f"unsupported schema_version {version if type(version) in (int, float) else describe(version)}: "
+            "this blendspace-pipeline reads version 1",
             path=path,
             line=line,
             column=column,
@@ -613,6 +614,10 @@ def _single(entry: _Entry, raw: Any) -> tuple[str, str | None]:
         return shown, _suggest(str(value), allowed, "allowed values")
     if kind == "manifest_rule":
         return str(entry.error["msg"]), ctx.get("hint")
+    if kind == "invalid_key":  # `5: x`: YAML read the key as a number
+        key = entry.key_path[-1] if entry.key_path else value
+        valid = list(owner.model_fields) if owner is not None else []
+        return f"a key must be a name, got {describe(key)}", _suggest(str(key), valid, "valid keys")
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         return _tag_problem(entry)
     if kind in _EXPECTED:

@@ -239,7 +239,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         in_place=in_place,
         units_guessed=units_guess is not None,
         joint_names=list(used.skeleton.names),
-        joint_parents=[int(p) for p in used.skeleton.parents],
+        # A track set without hierarchy (Godot) has no parents to compare, not all-roots.
+        joint_parents=[int(p) for p in used.skeleton.parents] if used.skeleton.has_hierarchy else [],
         guesses=guesses,
         range_used=range_used if (explicit is not None or auto or first > 0) else None,
         skeleton_key=skeleton_key(clip),

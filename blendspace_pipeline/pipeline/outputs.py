@@ -37,6 +37,7 @@ that already exists gets any file that differs from this build's replaced.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import filecmp
 import functools
@@ -63,7 +64,14 @@ from blendspace_pipeline.pipeline.early_quality import EarlyQuality
 from blendspace_pipeline.pipeline.fix_loop import FixState, apply_fixes
 from blendspace_pipeline.pipeline.forked import Children, Task, can_fork, run_tasks
 from blendspace_pipeline.pipeline.generated_clips import source_suffix, write_generated_clip
-from blendspace_pipeline.pipeline.own_outputs import CURRENT, GENERATIONS, PLACED, output_folder
+from blendspace_pipeline.pipeline.own_outputs import (
+    CURRENT,
+    GENERATIONS,
+    PLACED,
+    output_folder,
+    placed_record,
+    still_placed,
+)
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.pipeline.to_document import to_document
 from blendspace_pipeline.report.atomic import verify_written
@@ -709,21 +717,16 @@ def _drop_old_clips(
     (the same file, with the bytes it had then), so engines that import every `clips/*` file do not
     import clips the space dropped. Kept: a clip the build read as a source, one another blend
     space published over it, one edited since (in place or saved anew)."""
-    try:
-        placed = json.loads((previous / PLACED).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return  # no record of what it placed (an older generation): nothing is known to be ours
-    if not isinstance(placed, dict):
-        return
-    for relative, digest in sorted(placed.items()):
+    # No record of what it placed (an older generation): nothing is known to be ours.
+    for relative, digest in sorted(placed_record(previous).items()):
         target = out_dir / relative
         if target in wanted or target.is_symlink() or _identity(target) in read():
             continue
-        try:
-            if os.path.samefile(target, previous / relative) and file_sha256(target) == digest:
+        if still_placed(target, previous, relative, digest):
+            with contextlib.suppress(
+                OSError
+            ):  # gone already: a build never fails over a file it meant to tidy
                 target.unlink()
-        except OSError:
-            continue  # gone already, or not ours: a build never fails over a file it meant to tidy
 
 
 def _refresh(staging: Path, generation: Path, files: Sequence[Path]) -> None:

@@ -29,24 +29,23 @@ def output_folder(loaded: LoadedManifest, out: Path | None) -> Path:
     return configured if configured.is_absolute() else loaded.directory / configured
 
 
-def placed_clips(out_dir: Path, space_name: str) -> set[tuple[int, int]]:
-    """(device, inode) of each clip the published generation of ``space_name`` placed under
-    ``out_dir`` that is still that file with those bytes. Empty when there is no such record."""
-    generation = out_dir / GENERATIONS / safe_file_stem(space_name) / CURRENT
+def placed_record(generation: Path) -> dict[str, str]:
+    """``generation``'s record of the clips it placed: relative path -> SHA-256 (empty without
+    one: an older generation, or none)."""
     try:
         placed = json.loads((generation / PLACED).read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return set()
-    found: set[tuple[int, int]] = set()
-    for relative, digest in placed.items() if isinstance(placed, dict) else ():
-        target = out_dir / relative
-        try:
-            if os.path.samefile(target, generation / relative) and file_sha256(target) == digest:
-                info = target.stat()
-                found.add((info.st_dev, info.st_ino))
-        except (OSError, TypeError):
-            continue
-    return found
+        return {}
+    return {str(k): str(v) for k, v in placed.items()} if isinstance(placed, dict) else {}
+
+
+def still_placed(target: Path, generation: Path, relative: str, digest: str) -> bool:
+    """Whether ``target`` is still the clip ``generation`` placed there: the same file (a hard
+    link into the generation) with the same bytes (an edit in place changes both links)."""
+    try:
+        return os.path.samefile(target, generation / relative) and file_sha256(target) == digest
+    except OSError:
+        return False
 
 
 def authored(
@@ -54,20 +53,32 @@ def authored(
 ) -> list[ResolvedClipFile]:
     """``files`` without the clips the last build of this manifest placed, where a glob matched
     them. A clip named by its own entry stays a source (a build never overwrites it), and one the
-    user edited or saved anew is theirs."""
-    if not any(is_glob_entry(loaded, f.entry) for f in files):
+    user edited or saved anew is theirs. Costs a read of the record and a stat per globbed file;
+    a clip is hashed only when a glob reached it."""
+    globbed = {i for i, f in enumerate(files) if is_glob_entry(loaded, f.entry)}
+    if not globbed:
         return files
-    placed = placed_clips(output_folder(loaded, out), loaded.model.name)
-    if not placed:
+    out_dir = output_folder(loaded, out)
+    generation = out_dir / GENERATIONS / safe_file_stem(loaded.model.name) / CURRENT
+    record = placed_record(generation)
+    if not record:
         return files
+    placed: dict[tuple[int, int], tuple[str, str]] = {}
+    for relative, digest in record.items():
+        try:
+            info = (out_dir / relative).stat()
+        except OSError:
+            continue
+        placed[(info.st_dev, info.st_ino)] = (relative, digest)
     kept = []
-    for resolved in files:
+    for index, resolved in enumerate(files):
         try:
             info = resolved.path.stat()
         except OSError:
             kept.append(resolved)
             continue
-        if (info.st_dev, info.st_ino) in placed and is_glob_entry(loaded, resolved.entry):
+        mine = placed.get((info.st_dev, info.st_ino)) if index in globbed else None
+        if mine is not None and still_placed(out_dir / mine[0], generation, *mine):
             continue
         kept.append(resolved)
     return kept
