@@ -452,3 +452,23 @@ def test_a_file_unit_that_makes_the_legs_no_body_s_is_a_guess(stated: float, leg
     assert f"makes the legs {legs}" in guess.evidence and "the body reads 1 m per unit" in guess.evidence
     clip.meters_per_unit = 1.0
     assert not measure(clip, AUTO).guesses  # the file's right unit is not doubted
+
+
+def test_a_manifest_setting_the_body_contradicts_is_doubted_aloud() -> None:
+    """A top-level `skeleton: {up: z}` copied onto a Y-up take read a straight walk as 59.7 deg
+    sideways at 0.02 m/s, and `units: cm` on a rig in metres a walk at 0.012 m/s, without a word.
+    The setting is used and a detection guess says what the body reads; a right setting, or one
+    the body cannot settle, is not doubted."""
+    clip = generate(GaitSpec("walk", speed=1.4, duration=1.0))
+    up = measure(clip, RigSettings(up="z"))
+    assert up.up_axis == "z"
+    [guess] = [g for g in up.guesses if g.what == "up axis"]
+    assert guess.value == "Z (the manifest's)" and "the body reads Y up" in guess.evidence
+    assert guess.override == "skeleton: {up: y}"
+    units = measure(clip, RigSettings(units="cm"))
+    assert units.meters_per_unit == 0.01
+    [guess] = [g for g in units.guesses if g.what == "units"]
+    assert guess.value == "0.01 m per unit (the manifest's)" and "legs 0.0082 m long" in guess.evidence
+    assert not measure(clip, RigSettings(up="y", units="m")).guesses
+    assert not measure(clip, RigSettings(units=2.0)).guesses  # legs 1.6 m: a giant, not a mistake
+    assert [g.what for g in measure(clip, RigSettings(units="in")).guesses] == ["units"]  # 2.1 cm legs

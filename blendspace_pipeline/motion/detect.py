@@ -8,7 +8,7 @@ can report what was used, and every automatic guess can be overridden in the man
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TypeVar, cast
 
 import numpy as np
@@ -318,7 +318,8 @@ def resolve_up_guess(
     clip: Clip, world_pos: FloatArray, settings: RigSettings
 ) -> tuple[str, str | None, DetectionGuess | None]:
     if settings.up != "auto":
-        return settings.up, None, None
+        confirmed = clip.up_axis == settings.up  # the file says so too (USD `upAxis`)
+        return settings.up, None, None if confirmed else _doubt_stated_up(clip, world_pos, settings)
     if clip.up_axis is not None:
         return clip.up_axis, None, None
     found = detect_up(clip, world_pos, settings)
@@ -338,6 +339,24 @@ def resolve_up_guess(
         up,
         f"up axis guessed as {up.upper()} from the joints' spread",
         DetectionGuess("up axis", up.upper(), evidence, "skeleton: {up: y} or {up: z}"),
+    )
+
+
+def _doubt_stated_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> DetectionGuess | None:
+    """A guess when the manifest's `skeleton.up` contradicts a body that stands clearly along
+    another axis (a top-level `up: z` copied onto a Y-up take read a straight walk as 59.7 deg
+    sideways): the setting is still used, and the finding says what the body reads."""
+    found = detect_up(clip, world_pos, replace(settings, up="auto"))
+    if found is None:
+        return None
+    up, confidence, evidence = found
+    if confidence < _UP_CONFIDENT_COS or up == settings.up:
+        return None
+    return DetectionGuess(
+        "up axis",
+        f"{settings.up.upper()} (the manifest's)",
+        f"the body reads {up.upper()} up: {evidence}",
+        f"skeleton: {{up: {up}}}",
     )
 
 
@@ -459,14 +478,24 @@ def resolve_units_guess(
     unit that makes it a human leg wins. Pass the whole, untrimmed clip: a unit estimated per
     range would differ between ranges of one file.
     """
-    if isinstance(settings.units, float | int) and not isinstance(settings.units, bool):
-        return float(settings.units), "manifest", None
-    if settings.units in UNIT_METERS:
-        return UNIT_METERS[str(settings.units)], "manifest", None
     override = "skeleton: {units: <m|cm|mm|in or metres per unit>}"
+    stated = None
+    if isinstance(settings.units, float | int) and not isinstance(settings.units, bool):
+        stated = float(settings.units), "manifest"
+    elif settings.units in UNIT_METERS:
+        stated = UNIT_METERS[str(settings.units)], "manifest"
+    elif clip.meters_per_unit is not None:
+        stated = clip.meters_per_unit, "file"
     body = body_joints(clip, settings)
-    if clip.meters_per_unit is not None:
-        return clip.meters_per_unit, "file", _doubt_file_unit(clip, world_pos, body, override)
+    if stated is not None:
+        # The manifest repeating the file's unit confirms it: that is how a doubt is settled.
+        confirmed = (
+            stated[1] == "manifest"
+            and clip.meters_per_unit is not None
+            and (abs(stated[0] / clip.meters_per_unit - 1.0) < 1e-6)
+        )
+        doubt = None if confirmed else _doubt_stated_unit(clip, world_pos, body, *stated, override)
+        return stated[0], stated[1], doubt
     if body is not None:
         legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
         leg = float(np.mean(legs))
@@ -486,24 +515,25 @@ def resolve_units_guess(
 _POSSIBLE_LEG = (0.1, 5.0)
 
 
-def _doubt_file_unit(
-    clip: Clip, world_pos: FloatArray, body: BodyJoints | None, override: str
+def _doubt_stated_unit(
+    clip: Clip, world_pos: FloatArray, body: BodyJoints | None, unit: float, whose: str, override: str
 ) -> DetectionGuess | None:
-    """A guess when the unit the file states (USD `metersPerUnit`, glTF metres) makes the legs
-    no body's: the file's unit is still used, and the finding names what the body reads."""
-    if body is None or clip.meters_per_unit is None:
+    """A guess when the unit the manifest or the file states (USD `metersPerUnit`, glTF metres)
+    makes the legs no body's: it is still used, and the finding names what the body reads (`cm`
+    on a rig in metres, a DCC scale applied twice)."""
+    if body is None:
         return None
     legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
-    leg = float(np.mean(legs)) * clip.meters_per_unit
+    leg = float(np.mean(legs)) * unit
     low, high = _POSSIBLE_LEG
     if leg <= 0.0 or low <= leg <= high:
         return None
-    bodily = _unit_from_length(leg / clip.meters_per_unit, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg", override)
+    bodily = _unit_from_length(leg / unit, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg", override)
     reads = f"; the body reads {bodily[0]:.4g} m per unit" if bodily[2] is None else ""
     return DetectionGuess(
         "units",
-        f"{clip.meters_per_unit:.4g} m per unit (the file's)",
-        f"the file's unit makes the legs {leg:.3g} m long{reads}",
+        f"{unit:.4g} m per unit (the {whose}'s)",
+        f"the {whose}'s unit makes the legs {leg:.3g} m long{reads}",
         override,
     )
 
