@@ -344,6 +344,39 @@ def test_a_clip_another_blend_space_published_is_not_removed(
     assert named and all((out / source).is_file() for source in named)
 
 
+def test_a_different_clip_another_blend_space_published_is_never_replaced(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two spaces built into one folder, each mirroring its own `turn` (other turn rates, so
+    other bytes) under one name: the second build replaced the first's `clips/turn_mirror.usda`,
+    which the first's JSON still names, without a word. It is exit 2, nothing written."""
+    first = _project(tmp_path / "a")
+    second_root = tmp_path / "b"
+    second_root.mkdir()
+    (second_root / "clips").mkdir()
+    for name, spec in {
+        "idle": GaitSpec("idle"),
+        "walk": GaitSpec("walk", speed=1.4),
+        "turn": GaitSpec("turn", turn_rate=60.0),
+    }.items():
+        write_usd_clip(
+            generate(spec), second_root / "clips" / f"{name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    second = second_root / "manifest.yaml"
+    second.write_text(first.read_text(encoding="utf-8").replace("name: t", "name: u"), encoding="utf-8")
+    out = tmp_path / "out"
+    assert main(["build", str(first), "--out", str(out)]) in (0, 1)
+    kept = (out / "clips" / "turn_mirror.usda").read_bytes()
+    capsys.readouterr()
+    assert main(["build", str(second), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "blend space 't' published a different clip of that name in this folder" in err, err
+    assert (out / "clips" / "turn_mirror.usda").read_bytes() == kept
+    assert not (out / "u.blendspace.json").exists()
+    # The first space rebuilt over its own clip is fine.
+    assert main(["build", str(first), "--out", str(out)]) in (0, 1)
+
+
 def test_an_older_build_s_generated_clip_in_the_way_is_replaced(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -597,7 +597,7 @@ def publish(
     # The sources' identities (a stat each: 1,000 on a library), made once and only when a clip
     # folder's file is in question: most builds have no generated clip to check or tidy.
     read = functools.cache(lambda: _identities(sources))
-    _check_targets(out_dir, files, home / CURRENT, read)
+    _check_targets(out_dir, files, home / CURRENT, read, staging)
     if not _symlinks_work(out_dir):
         for relative in files:
             target = out_dir / relative
@@ -648,13 +648,20 @@ def publish(
 
 
 def _check_targets(
-    out_dir: Path, files: Sequence[Path], current: Path, read: Callable[[], set[tuple[int, int]]]
+    out_dir: Path,
+    files: Sequence[Path],
+    current: Path,
+    read: Callable[[], set[tuple[int, int]]],
+    staging: Path | None = None,
 ) -> None:
     """Refuse, before anything moves, an output whose place holds a folder (never deleted: it is
     the user's), whose folder is a file, or (a generated clip) a file this tool did not write: a
     clip of the manifest's (`output.dir: .` puts `clips/` beside the sources) or any other file
     of the user's. The file system would fail half-way through; a clip would be overwritten.
-    ``read``: the identities of the files the build read."""
+    ``read``: the identities of the files the build read. A clip another blend space published
+    into this folder (`build a.yaml b.yaml --out build`, both mirroring a `walk`) is refused too,
+    unless this build's (in ``staging``) has the same bytes: its JSON names that clip."""
+    others = None
     for relative in files:
         target = out_dir / relative
         if target.is_dir() and not target.is_symlink():
@@ -677,6 +684,20 @@ def _check_targets(
                 "overwritten); rename it, or build to another folder with --out or output.dir",
                 str(target),
             )
+        if others is None:  # read once, and only when a generated clip's place is taken
+            homes = [h for h in (out_dir / GENERATIONS).glob("*") if h != current.parent]
+            others = {h / CURRENT: placed_record(h / CURRENT) for h in homes}
+        for generation, record in others.items():
+            digest = record.get(relative.as_posix())
+            if digest is None or not still_placed(target, generation, relative.as_posix(), digest):
+                continue
+            if staging is None or not filecmp.cmp(staging / relative, target, shallow=False):
+                raise FileExistsError(
+                    errno.EEXIST,
+                    f"blend space {generation.parent.name!r} published a different clip of that name in "
+                    "this folder (its JSON names it); give the two spaces their own --out or output.dir",
+                    str(target),
+                )
 
 
 def _identity(path: Path | str) -> tuple[int, int] | None:
