@@ -26,6 +26,17 @@ class DetectionGuess(Rule):
             if sample.generated:
                 continue
             for guess in sample.guesses:
+                if guess.value.endswith(("the manifest's)", "the file's)")):
+                    # A stated value the body contradicts: used as stated, doubted aloud.
+                    yield self.report(
+                        f"{sample.name}: {guess.what} {guess.value[: -len(')')]}, doubted: {guess.evidence})",
+                        clips=[sample.name],
+                        position=sample.position,
+                        hint=f"if that reading is right, set `{guess.override}` on the clip's entry (or the "
+                        "top-level `skeleton:`); if the stated value is, state it in the manifest (a file's "
+                        "unit repeated there is settled) or add `ignore: [{rule: detection-guess, reason: ...}]`",
+                    )
+                    continue
                 yield self.report(
                     f"{sample.name}: {guess.what} guessed as {guess.value} ({guess.evidence})",
                     clips=[sample.name],

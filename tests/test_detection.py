@@ -472,3 +472,40 @@ def test_a_manifest_setting_the_body_contradicts_is_doubted_aloud() -> None:
     assert not measure(clip, RigSettings(up="y", units="m")).guesses
     assert not measure(clip, RigSettings(units=2.0)).guesses  # legs 1.6 m: a giant, not a mistake
     assert [g.what for g in measure(clip, RigSettings(units="in")).guesses] == ["units"]  # 2.1 cm legs
+
+
+def test_swapped_hips_in_the_manifest_are_doubted_and_one_joint_for_both_is_refused(tmp_path: Path) -> None:
+    """`left_hip: RightUpLeg, right_hip: LeftUpLeg` read a walk at -1.2 m/s (180 deg) without a
+    word: a facing doubt names the pair the joint names give. `left_hip: RightUpLeg` alone made
+    both hips one joint, a hip line of zero length, and still printed a speed: exit 2."""
+    clip = generate(GaitSpec("walk", speed=1.2, duration=1.0))
+    swapped = measure(clip, RigSettings(left_hip="RightUpLeg", right_hip="LeftUpLeg"))
+    assert swapped.features["speed"] == pytest.approx(-1.2, abs=0.01)  # used as stated
+    [guess] = swapped.guesses
+    assert guess.what == "facing" and guess.value.startswith("backwards")
+    assert guess.override == "skeleton: {left_hip: LeftUpLeg, right_hip: RightUpLeg}"
+    assert not measure(clip, RigSettings(left_hip="LeftUpLeg", right_hip="RightUpLeg")).guesses
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for spec in (GaitSpec("walk", speed=1.2, duration=1.0), GaitSpec("idle", duration=1.0)):
+        write_bvh_clip(generate(spec), clips / f"{spec.name}.bvh")
+    manifest = tmp_path / "m.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: h\nclips:\n  - path: clips/walk.bvh\n    skeleton: {left_hip: RightUpLeg}\n"
+        "  - path: clips/idle.bvh\n",
+        encoding="utf-8",
+    )
+    assert main(["check", str(manifest)]) == 2
+    manifest.write_text(
+        "schema_version: 1\nname: h\nclips:\n  - path: clips/walk.bvh\n"
+        "    skeleton: {left_hip: RightUpLeg, right_hip: LeftUpLeg}\n  - path: clips/idle.bvh\n",
+        encoding="utf-8",
+    )
+    space = analyse(manifest)
+    [doubt] = [d for d in space.diagnostics if d.rule == "detection-guess"]
+    assert doubt.message.startswith(
+        "walk: facing backwards (left_hip RightUpLeg, right_hip LeftUpLeg, the manifest's, doubted:"
+    )
+    assert doubt.hint is not None and doubt.hint.startswith(
+        "if that reading is right, set `skeleton: {left_hip: LeftUpLeg"
+    )

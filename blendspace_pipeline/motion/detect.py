@@ -151,7 +151,9 @@ def hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
 
 def _hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     if settings.left_hip != "auto" and settings.right_hip != "auto":
-        return _joint(clip, settings.left_hip, "left_hip"), _joint(clip, settings.right_hip, "right_hip")
+        return _two_hips(
+            clip, _joint(clip, settings.left_hip, "left_hip"), _joint(clip, settings.right_hip, "right_hip")
+        )
     if not clip.skeleton.has_hierarchy:
         return None
     found = find_hips(clip.skeleton)
@@ -162,6 +164,18 @@ def _hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
         left = _joint(clip, settings.left_hip, "left_hip")
     if settings.right_hip != "auto":
         right = _joint(clip, settings.right_hip, "right_hip")
+    return _two_hips(clip, left, right)
+
+
+def _two_hips(clip: Clip, left: int, right: int) -> tuple[int, int]:
+    """(left, right), refused when both name one joint: its hip line is no line, and a walk read
+    1.2 m/s straight ahead by an accident of the zero vector's angle."""
+    if left == right:
+        raise ClipReadError(
+            f"clip {clip.name!r}: skeleton.left_hip and skeleton.right_hip both name {clip.skeleton.names[left]!r}",
+            path=clip.source,
+            hint="name the two hip joints, or leave them auto",
+        )
     return left, right
 
 
@@ -399,6 +413,21 @@ def _fallback_root_joint(clip: Clip) -> int:
     return 0
 
 
+def _doubt_stated_hips(clip: Clip, hips: tuple[int, int]) -> DetectionGuess | None:
+    """A guess when the manifest's `left_hip` / `right_hip` are the pair the joint names give,
+    swapped: the hip line then faces backwards and a walk reads -1.2 m/s at 180 deg."""
+    named = find_hips(clip.skeleton) if clip.skeleton.has_hierarchy else None
+    if named is None or (hips[1], hips[0]) != named:
+        return None
+    names = clip.skeleton.names
+    return DetectionGuess(
+        "facing",
+        f"backwards (left_hip {names[hips[0]]}, right_hip {names[hips[1]]}, the manifest's)",
+        f"the joint names make {names[named[0]]} the left hip and {names[named[1]]} the right one",
+        f"skeleton: {{left_hip: {names[named[0]]}, right_hip: {names[named[1]]}}}",
+    )
+
+
 def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
     up = up_vector(up_axis)
     hips = hip_pair(clip, settings) if settings.forward == "auto" else None
@@ -408,7 +437,7 @@ def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
         def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
             return quat.cross(pos[:, left] - pos[:, right], up)
 
-        return Facing(label="hip line", vectors=from_hip_line)
+        return Facing(label="hip line", vectors=from_hip_line, guess=_doubt_stated_hips(clip, hips))
     axis_name = settings.forward if settings.forward != "auto" else ("-y" if up_axis == "z" else "+z")
     axis = np.array(_AXIS_VECTORS[axis_name])
     joint = _joint(clip, settings.root, "root") if settings.root != "auto" else _fallback_root_joint(clip)
