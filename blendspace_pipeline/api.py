@@ -78,12 +78,14 @@ def _read_only(mapping: Mapping[str, _V]) -> Mapping[str, _V]:
 @dataclass(frozen=True)
 class DetectionGuessView:
     """A decision about a clip that its data did not settle (up axis, units, root or facing):
-    the value used, the evidence seen, and the manifest setting that replaces the guess."""
+    the value used, the evidence seen, and the manifest setting that replaces the guess.
+    ``stated``: a value the file or the manifest states that the data contradicts (used, doubted)."""
 
     what: str
     value: str
     evidence: str
     override: str
+    stated: bool = False
 
 
 @dataclass(frozen=True)

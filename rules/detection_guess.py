@@ -26,22 +26,20 @@ class DetectionGuess(Rule):
             if sample.generated:
                 continue
             for guess in sample.guesses:
-                if guess.value.endswith(("the manifest's)", "the file's)")):
-                    # A stated value the body contradicts: used as stated, doubted aloud.
-                    yield self.report(
-                        f"{sample.name}: {guess.what} {guess.value[: -len(')')]}, doubted: {guess.evidence})",
-                        clips=[sample.name],
-                        position=sample.position,
-                        hint=f"if that reading is right, set `{guess.override}` on the clip's entry (or the "
+                if guess.stated:  # a value the file or the manifest states: used, and doubted aloud
+                    message = f"{guess.what} {guess.value[:-1]}, doubted: {guess.evidence})"
+                    hint = (
+                        f"if that reading is right, set `{guess.override}` on the clip's entry (or the "
                         "top-level `skeleton:`); if the stated value is, state it in the manifest (a file's "
-                        "unit repeated there is settled) or add `ignore: [{rule: detection-guess, reason: ...}]`",
+                        "unit repeated there is settled) or add `ignore: [{rule: detection-guess, reason: ...}]`"
                     )
-                    continue
+                else:
+                    message = f"{guess.what} guessed as {guess.value} ({guess.evidence})"
+                    hint = (
+                        f"`{guess.override}` on the clip's entry (or the top-level `skeleton:`) confirms the "
+                        "guess; give the right value there if it is wrong (units: m, cm, mm, in or metres per "
+                        "unit; up: y or z)"
+                    )
                 yield self.report(
-                    f"{sample.name}: {guess.what} guessed as {guess.value} ({guess.evidence})",
-                    clips=[sample.name],
-                    position=sample.position,
-                    hint=f"`{guess.override}` on the clip's entry (or the top-level `skeleton:`) confirms "
-                    "the guess; give the right value there if it is wrong (units: m, cm, mm, in or metres "
-                    "per unit; up: y or z)",
+                    f"{sample.name}: {message}", clips=[sample.name], position=sample.position, hint=hint
                 )

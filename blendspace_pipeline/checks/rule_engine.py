@@ -334,7 +334,9 @@ def sample_view(
         joint_names=tuple(m.joint_names),
         joint_parents=tuple(m.joint_parents),
         notes=tuple(m.notes),
-        guesses=tuple(DetectionGuessView(g.what, g.value, g.evidence, g.override) for g in m.guesses),
+        guesses=tuple(
+            DetectionGuessView(g.what, g.value, g.evidence, g.override, g.stated) for g in m.guesses
+        ),
         skeleton_key=m.skeleton_key,
         gait_period=m.gait_period,
         contacts={foot: tuple((a, b) for a, b in spans) for foot, spans in m.contacts.items()}

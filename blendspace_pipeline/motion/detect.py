@@ -71,13 +71,15 @@ class DetectionGuess:
     """A decision the data did not settle: reported as a `detection-guess` warning.
 
     ``what`` is up axis, units, root or facing; ``evidence`` says what was seen and ``override``
-    is the exact manifest setting that replaces the guess.
+    is the exact manifest setting that replaces the guess. ``stated``: the value is not a guess
+    but one the file or the manifest states, which the data contradicts (used, and doubted).
     """
 
     what: str
     value: str
     evidence: str
     override: str
+    stated: bool = False
 
 
 @dataclass
@@ -371,6 +373,7 @@ def _doubt_stated_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -
         f"{settings.up.upper()} (the manifest's)",
         f"the body reads {up.upper()} up: {evidence}",
         f"skeleton: {{up: {up}}}",
+        stated=True,
     )
 
 
@@ -425,6 +428,7 @@ def _doubt_stated_hips(clip: Clip, hips: tuple[int, int]) -> DetectionGuess | No
         f"backwards (left_hip {names[hips[0]]}, right_hip {names[hips[1]]}, the manifest's)",
         f"the joint names make {names[named[0]]} the left hip and {names[named[1]]} the right one",
         f"skeleton: {{left_hip: {names[named[0]]}, right_hip: {names[named[1]]}}}",
+        stated=True,
     )
 
 
@@ -564,6 +568,7 @@ def _doubt_stated_unit(
         f"{unit:.4g} m per unit (the {whose}'s)",
         f"the {whose}'s unit makes the legs {leg:.3g} m long{reads}",
         override,
+        stated=True,
     )
 
 

@@ -184,7 +184,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     notes += [n for n in (up_note,) if n]
     notes += root.notes + facing.notes
     guesses += [g for g in (up_guess, units_guess, root.guess, facing.guess) if g is not None]
-    if units_guess is not None and units_source in ("file", "manifest"):
+    if units_guess is not None and units_guess.stated:
         notes.append(
             f"{units_guess.evidence}: the {units_source}'s {meters_per_unit:.4g} m per unit doubted; "
             "set `skeleton.units` to be sure"
