@@ -530,8 +530,7 @@ def resolve_units_guess(
         doubt = None if confirmed else _doubt_stated_unit(clip, world_pos, body, *stated, override)
         return stated[0], stated[1], doubt
     if body is not None:
-        legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
-        leg = float(np.mean(legs))
+        leg = _leg_length(clip, world_pos, body)
         if leg > 0.0:
             return _unit_from_length(leg, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg (hip to ankle)", override)
     if not clip.skeleton.has_hierarchy:
@@ -541,6 +540,12 @@ def resolve_units_guess(
         return 1.0, "assumed metres", DetectionGuess("units", "m", "no body to size", override)
     reference = REFERENCE_HIP_HEIGHT - _LOWEST_JOINT_HEIGHT
     return _unit_from_length(height, reference, _PLAUSIBLE_HIP_HEIGHT, "hip height", override)
+
+
+def _leg_length(clip: Clip, world_pos: FloatArray, body: BodyJoints) -> float:
+    """Mean hip socket to ankle length over both legs, in file units (summed bone lengths)."""
+    legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
+    return float(np.mean(legs))
 
 
 # The file's unit stands unless it makes the legs this far from any body's (toddler to giant
@@ -556,8 +561,7 @@ def _doubt_stated_unit(
     on a rig in metres, a DCC scale applied twice)."""
     if body is None:
         return None
-    legs = [_chain_length(clip, world_pos, h, f) for h, f in zip(body.hips, body.feet, strict=True)]
-    leg = float(np.mean(legs)) * unit
+    leg = _leg_length(clip, world_pos, body) * unit
     low, high = _POSSIBLE_LEG
     if leg <= 0.0 or low <= leg <= high:
         return None
