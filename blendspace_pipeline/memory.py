@@ -7,9 +7,11 @@ it runs in. The measuring workers, the build server and the `blendspace` command
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import gc
 import sys
+from collections.abc import Iterator
 
 # Objects allocated (net) between two collections of the youngest generation; Python's default is 700.
 YOUNG_THRESHOLD = 10_000
@@ -67,3 +69,24 @@ def collect_less() -> None:
     collected, a little later. Not for library callers, like `keep_freed_memory`."""
     _young, middle, old = gc.get_threshold()
     gc.set_threshold(YOUNG_THRESHOLD, middle, old)
+
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """No cycle collection while a `build` or `check` runs; as it was afterwards (a caller of
+    `cli.main` in a long-lived process gets its collector back).
+
+    Such a command makes almost no reference cycles: a cold 1,000-clip build left 1,688
+    unreachable objects (340 with the collector on), and its peak memory was the same (413 MB
+    at `--jobs 1`, 182 MB at `--jobs 2`). But it makes several hundred thousand objects that
+    live to its end (measurements, sample views, findings, the document), and every young and
+    middle collection walked them: 60-100 ms of a served one-clip edit of that library, in the
+    command's own process alone, and more in the writers it forks (which inherit the pause).
+    `index`, which runs for hours on a Dask cluster, keeps its collector."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()

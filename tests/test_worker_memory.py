@@ -5,9 +5,11 @@ happens and nothing fails."""
 from __future__ import annotations
 
 import ctypes
+import gc
 import platform
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -140,3 +142,46 @@ def test_the_build_server_sets_both_for_the_commands_it_forks(monkeypatch: pytes
     finally:
         gc.unfreeze()  # serve froze this test process's objects before it would listen
     assert calls == ["allocator", "collector", "listen"]
+
+
+def test_build_and_check_run_without_the_cycle_collector_and_give_it_back(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`memory.collector_paused`: the rules of a `build` and a `check` run with the cycle
+    collector off (it walked every measurement and finding of a 1,000-clip edit again and again),
+    and a caller of `cli.main` gets its collector back, also after a failed command."""
+    from blendspace_pipeline.cli import main
+    from blendspace_pipeline.motion.procedural import GaitSpec, generate
+    from blendspace_pipeline.pipeline import analysis
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    (tmp_path / "clips").mkdir()
+    for spec in (
+        GaitSpec("walk", speed=1.4),
+        GaitSpec("run", speed=3.0),
+        GaitSpec("left", speed=1.4, turn_rate=60.0),
+    ):
+        write_bvh_clip(generate(spec), tmp_path / "clips" / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    seen: list[bool] = []
+    real = analysis.finish_analysis
+
+    def spy(space: object) -> None:
+        seen.append(gc.isenabled())
+        real(space)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(analysis, "finish_analysis", spy)
+    assert gc.isenabled()
+    main(["check", str(manifest)])
+    main(["build", str(manifest), "--no-fix", "--out", str(tmp_path / "out")])
+    assert seen and not any(seen)
+    assert gc.isenabled()
+    assert main(["build", str(tmp_path / "missing.yaml")]) == 2
+    assert gc.isenabled()
+    gc.disable()  # a caller that runs without it keeps it off
+    try:
+        main(["check", str(manifest)])
+        assert not gc.isenabled()
+    finally:
+        gc.enable()

@@ -14,6 +14,7 @@ from blendspace_pipeline.commands._shared import (
     report_input_error,
 )
 from blendspace_pipeline.errors import EXIT_INPUT, InputError, UsageError
+from blendspace_pipeline.memory import collector_paused
 from blendspace_pipeline.pipeline import stamp
 
 if TYPE_CHECKING:
@@ -30,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with command_environment(args):
+    with command_environment(args), collector_paused():
         return _stamped(args)
 
 

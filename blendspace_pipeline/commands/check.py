@@ -15,6 +15,7 @@ from blendspace_pipeline.commands._shared import (
     report_input_error,
 )
 from blendspace_pipeline.errors import EXIT_INPUT, InputError
+from blendspace_pipeline.memory import collector_paused
 from blendspace_pipeline.pipeline import stamp
 
 if TYPE_CHECKING:
@@ -35,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with command_environment(args):
+    with command_environment(args), collector_paused():
         if args.changed:
             from blendspace_pipeline.commands._changed import manifests_for, relative_names
 

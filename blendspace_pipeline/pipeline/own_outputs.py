@@ -55,7 +55,12 @@ def authored(
     them. A clip named by its own entry stays a source (a build never overwrites it), and one the
     user edited or saved anew is theirs. Costs a read of the record and a stat per globbed file;
     a clip is hashed only when a glob reached it."""
-    globbed = {i for i, f in enumerate(files) if is_glob_entry(loaded, f.entry)}
+    # Asked once per manifest entry, not per file (each asking stats the entry's pattern).
+    glob_entry: dict[int, bool] = {}
+    for f in files:
+        if id(f.entry) not in glob_entry:
+            glob_entry[id(f.entry)] = is_glob_entry(loaded, f.entry)
+    globbed = {i for i, f in enumerate(files) if glob_entry[id(f.entry)]}
     if not globbed:
         return files
     out_dir = output_folder(loaded, out)
