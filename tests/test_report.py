@@ -317,6 +317,31 @@ def test_png_bytes_are_the_rendered_image_as_oiio_converts_it(tmp_path: Path) ->
     assert np.array_equal(written, render(doc).get_pixels(UINT8))
 
 
+def test_png_file_is_read_back_by_oiio_pixel_for_pixel_as_srgb(tmp_path: Path) -> None:
+    """`png_file` writes the PNG container itself (zlib rows, CRCs, the sRGB chunks): OIIO's
+    libpng reader takes any 8-bit RGB image back unchanged, odd sizes and noise included, and
+    reads it as sRGB; other pixel types are refused, not written wrong."""
+    from OpenImageIO import UINT8, ImageBuf
+
+    from blendspace_pipeline.report.png import png_file
+
+    rng = np.random.default_rng(3)
+    for height, width in ((1, 1), (7, 13), (960, 1280)):
+        pixels = rng.integers(0, 256, size=(height, width, 3), dtype=np.uint8)
+        pixels[: height // 2] = (40, 80, 120)  # flat colour, as a diagram is
+        path = tmp_path / f"{height}x{width}.png"
+        path.write_bytes(png_file(pixels))
+        image = ImageBuf(str(path))
+        assert not image.has_error, image.geterror()
+        assert (image.spec().width, image.spec().height, image.spec().nchannels) == (width, height, 3)
+        assert np.array_equal(image.get_pixels(UINT8), pixels)
+        assert "srgb" in image.spec().get_string_attribute("oiio:ColorSpace").lower()
+    with pytest.raises(ValueError, match="8-bit RGB"):
+        png_file(np.zeros((4, 4, 4), dtype=np.uint8))
+    with pytest.raises(ValueError, match="8-bit RGB"):
+        png_file(np.zeros((4, 4, 3), dtype=np.float32))
+
+
 def _pixel(pixels: np.ndarray, x: float, y: float) -> tuple[float, float, float]:
     row, column = round(y), round(x)
     return tuple(float(v) * 255.0 for v in pixels[row, column, :3])  # type: ignore[return-value]

@@ -180,7 +180,7 @@ def _writers(report: _ReportParts) -> dict[str, tuple[str, Callable[[BlendSpaceD
 
 # Bumped whenever a writer would write other bytes for the same document (in a release the
 # version changes too; the package's own source files are digested as well, see `_code_digest`).
-OUTPUT_REVISION = 1
+OUTPUT_REVISION = 2
 # Libraries whose version changes what a writer writes.
 _WRITER_LIBRARIES = {"usd": ("usd-core",), "png": ("OpenImageIO", "numpy"), "html": ("numpy",), "json": ()}
 

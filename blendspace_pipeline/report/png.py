@@ -5,7 +5,7 @@ the HTML report, all in a numpy canvas: translucent areas (uncovered hatch, acut
 too-close clusters) as pixel-row spans of every shape at once, then grid, edges, outlines and
 markers (`_Pen`: thousands of segments and markers per vectorised call), so the cost is pixels
 plus shapes, not a Python loop per sample. OIIO renders each piece of text on a small patch (its
-coverage is blended in) and writes the file. Everything is drawn at twice the size and reduced
+coverage is blended in); the file is written here (`png_file`). Everything is drawn at twice the size and reduced
 with a box filter, which anti-aliases the one-pixel lines and text without changing the colour
 at a marker's centre.
 """
@@ -13,7 +13,9 @@ at a marker's centre.
 from __future__ import annotations
 
 import math
+import struct
 import warnings
+import zlib
 from collections.abc import Sequence
 from functools import cache, lru_cache
 from pathlib import Path
@@ -41,7 +43,6 @@ from blendspace_pipeline.space.document import BlendSpaceDocument
 
 PNG_LAYOUT = Layout(width=1280, height=960, left=84, right=270, top=78, bottom=70)
 SCALE = 2  # supersampling factor
-PNG_FILTER_NONE = 0x08  # libpng's PNG_FILTER_NONE, for OIIO's "png:filter"
 LABEL_LIMIT = 60  # more samples than this: names would hide the diagram
 Colour = tuple[float, float, float]
 Canvas = np.ndarray[Any, np.dtype[np.float32]]  # (height, width, 3) RGB
@@ -49,17 +50,48 @@ Canvas = np.ndarray[Any, np.dtype[np.float32]]  # (height, width, 3) RGB
 
 def write_png(doc: BlendSpaceDocument, path: Path) -> None:
     """Render the diagram and write it atomically (temporary file in the same folder, then rename)."""
-    pixels = _pixel_bytes(_draw(doc))
-    spec = oiio.ImageSpec(PNG_LAYOUT.width, PNG_LAYOUT.height, 3, oiio.UINT8)
-    # A diagram is flat colour: unfiltered rows at zlib level 3 deflate to ~30 % less than
-    # libpng's adaptive filters at level 6, in 40 % of the time (measured on a 1,000-clip diagram).
-    spec.attribute("png:filter", PNG_FILTER_NONE)
-    spec.attribute("png:compressionLevel", 3)
-    image = oiio.ImageBuf(spec)
-    image.set_pixels(oiio.ROI(0, PNG_LAYOUT.width, 0, PNG_LAYOUT.height, 0, 1, 0, 3), pixels)
-    with atomic_path(Path(path), suffix=".tmp.png") as temporary:  # OIIO picks the format by extension
-        if not image.write(str(temporary), oiio.UINT8):
-            raise OSError(f"{path}: could not write the PNG: {image.geterror()}")
+    data = png_file(_pixel_bytes(_draw(doc)))
+    with atomic_path(Path(path), suffix=".tmp.png") as temporary:
+        temporary.write_bytes(data)
+
+
+# The colour chunks libpng writes for sRGB pixels: sRGB (perceptual intent), and the gamma and
+# chromaticities older decoders use instead (PNG 1.2, 11.3.3.5: the values that match sRGB).
+_SRGB_CHUNKS = (
+    (b"sRGB", bytes([0])),
+    (b"gAMA", struct.pack(">I", 45455)),
+    (b"cHRM", struct.pack(">8I", 31270, 32900, 64000, 33000, 30000, 60000, 15000, 6000)),
+)
+PNG_COMPRESSION = 3  # zlib level
+
+
+def png_file(pixels: np.ndarray) -> bytes:
+    """The PNG file of 8-bit RGB ``pixels`` (height, width, 3): every row unfiltered (filter type
+    0), the rows deflated at zlib level 3.
+
+    A diagram is flat colour: unfiltered rows at level 3 deflate to ~30 % less than libpng's
+    adaptive filters at level 6. Written here, with the zlib libpng itself uses, a 1,000-clip
+    diagram takes 20 ms against 50 ms through OpenImageIO's PNG writer (same size, 308 kB; its
+    extra time went to copying into an image buffer and libpng's per-row calls). OIIO reads the
+    file back to the same pixels (tested)."""
+    height, width, channels = pixels.shape
+    if channels != 3 or pixels.dtype != np.uint8:
+        raise ValueError(f"expected 8-bit RGB pixels, got {channels} channels of {pixels.dtype}")
+    rows = np.empty((height, 1 + 3 * width), dtype=np.uint8)
+    rows[:, 0] = 0  # filter type: none
+    rows[:, 1:] = pixels.reshape(height, 3 * width)
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)  # 8 bits, RGB, no interlace
+    chunks = [
+        (b"IHDR", header),
+        *_SRGB_CHUNKS,
+        (b"IDAT", zlib.compress(rows.data, PNG_COMPRESSION)),
+        (b"IEND", b""),
+    ]
+    return b"\x89PNG\r\n\x1a\n" + b"".join(_chunk(kind, data) for kind, data in chunks)
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(data, zlib.crc32(kind)))
 
 
 def render(doc: BlendSpaceDocument) -> oiio.ImageBuf:
