@@ -50,7 +50,7 @@ BLENDS = [
 def units(clip: Clip) -> tuple[float, str]:
     _, positions = forward_kinematics(clip)
     up, _ = resolve_up(clip, positions, SETTINGS)
-    mpu, _, _ = resolve_units(clip, positions, SETTINGS, up, resolve_root(clip, SETTINGS))
+    mpu, _, _ = resolve_units(clip, positions, SETTINGS, up, resolve_root(clip, SETTINGS, positions))
     return mpu, up
 
 

@@ -25,7 +25,7 @@ SETTINGS = RigSettings()
 def _unit(clip: Clip) -> tuple[float, str]:
     positions = forward_kinematics(clip)[1]
     up, _ = resolve_up(clip, positions, SETTINGS)
-    return resolve_units(clip, positions, SETTINGS, up, resolve_root(clip, SETTINGS))[0], up
+    return resolve_units(clip, positions, SETTINGS, up, resolve_root(clip, SETTINGS, positions))[0], up
 
 
 def _sliding(clip: Clip, unit: float, up: str) -> float:

@@ -377,10 +377,16 @@ def _doubt_stated_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -
     )
 
 
-def resolve_root(clip: Clip, settings: RigSettings) -> RootPoint:
+def resolve_root(clip: Clip, settings: RigSettings, world_pos: FloatArray) -> RootPoint:
+    """The point whose ground track is the root motion. ``world_pos``: the clip's forward
+    kinematics (F, J, 3), to check a stated root and to find a fallback that moves."""
     if settings.root != "auto":
         joint = _joint(clip, settings.root, "root")
-        return RootPoint(label=clip.skeleton.names[joint], positions=lambda p: p[:, joint])
+        return RootPoint(
+            label=clip.skeleton.names[joint],
+            positions=lambda p: p[:, joint],
+            guess=_doubt_stated_root(clip, settings, world_pos, joint),
+        )
     hips = hip_pair(clip, settings)
     if hips is not None:
         left, right = hips
@@ -389,7 +395,7 @@ def resolve_root(clip: Clip, settings: RigSettings) -> RootPoint:
             label=f"hip midpoint ({names[left]}, {names[right]})",
             positions=lambda p: 0.5 * (p[:, left] + p[:, right]),
         )
-    joint = _fallback_root_joint(clip)
+    joint = fallback_root_joint(clip, world_pos)
     name = clip.skeleton.names[joint]
     guess = None
     if clip.skeleton.has_hierarchy:  # a flat track set (Godot) has its root motion on that joint by design
@@ -407,13 +413,64 @@ def resolve_root(clip: Clip, settings: RigSettings) -> RootPoint:
     )
 
 
-def _fallback_root_joint(clip: Clip) -> int:
-    """A joint literally called root if there is one, else the first root of the hierarchy."""
+def fallback_root_joint(clip: Clip, world_pos: FloatArray) -> int:
+    """Without hips: a joint literally called root if there is one, else the first root of the
+    hierarchy; but when that one stays put while the body travels (a static top joint at the
+    origin, as MikuMikuDance's `全ての親` or a MotionBuilder reference), the highest joint that
+    travels with the body. A root-motion joint on the ground travels: it stays the choice."""
     lowered = [name.lower() for name in clip.skeleton.names]
-    for candidate in ("root", "root_jnt", "rootjoint"):
-        if candidate in lowered:
-            return lowered.index(candidate)
-    return 0
+    named = next((lowered.index(c) for c in ("root", "root_jnt", "rootjoint") if c in lowered), None)
+    chosen = 0 if named is None else named
+    if not clip.skeleton.has_hierarchy or len(world_pos) < 2:
+        return chosen
+    travel = _travel(world_pos)
+    body = float(np.median(travel))
+    if body <= _still_travel(world_pos) or travel[chosen] >= _MOVES_WITH_BODY * body:
+        return chosen
+    moving = [j for j in range(clip.skeleton.joint_count) if travel[j] >= _MOVES_WITH_BODY * body]
+    return min(moving, key=lambda j: (_depth_below(clip, j, -1), j))
+
+
+# A joint moves with the body when its ground track is at least this share of the median joint's.
+_MOVES_WITH_BODY = 0.5
+
+
+def _travel(world_pos: FloatArray) -> FloatArray:
+    """(J,) each joint's path length over the take, in file units, at about 100 points along it
+    (frame by frame, a mocap take's jitter adds up to metres over a long take). In 3D: the up
+    axis may not be known yet, and a walk's travel dwarfs its bob."""
+    sampled = world_pos[:: max(1, len(world_pos) // 100)]
+    travel: FloatArray = quat.vector_norm(np.diff(sampled, axis=0)).sum(axis=0)
+    return travel
+
+
+def _still_travel(world_pos: FloatArray) -> float:
+    """Path length below which a take does not travel: a tenth of the body's size."""
+    frame = world_pos[len(world_pos) // 2]
+    return 0.1 * float(np.max(frame.max(axis=0) - frame.min(axis=0)))
+
+
+def _doubt_stated_root(
+    clip: Clip, settings: RigSettings, world_pos: FloatArray, joint: int
+) -> DetectionGuess | None:
+    """A guess when the manifest's `skeleton.root` stays put while the body travels (a dataset's
+    static `joint_Root` at the origin read a 1.4 m/s walk as standing still): still used."""
+    if not clip.skeleton.has_hierarchy or len(world_pos) < 2:
+        return None
+    travel = _travel(world_pos)
+    hips = hip_pair(clip, settings)
+    body = float(np.mean(travel[list(hips)])) if hips is not None else float(np.median(travel))
+    if body <= _still_travel(world_pos) or travel[joint] >= 0.1 * body:
+        return None
+    name = clip.skeleton.names[joint]
+    via = "the hips" if hips is not None else "the body"
+    return DetectionGuess(
+        "root",
+        f"{name} (the manifest's)",
+        f"{name} travels {100.0 * travel[joint] / body:.0f} % as far as {via} over the take: the motion is elsewhere",
+        "skeleton: {root: auto} (the hip midpoint), or the joint that carries the motion",
+        stated=True,
+    )
 
 
 def _doubt_stated_hips(clip: Clip, hips: tuple[int, int]) -> DetectionGuess | None:
@@ -432,49 +489,238 @@ def _doubt_stated_hips(clip: Clip, hips: tuple[int, int]) -> DetectionGuess | No
     )
 
 
-def resolve_facing(clip: Clip, settings: RigSettings, up_axis: str) -> Facing:
+def resolve_facing(
+    clip: Clip, settings: RigSettings, up_axis: str, posed: tuple[FloatArray, FloatArray]
+) -> Facing:
+    """Which way the character faces, per frame. ``posed``: the clip's forward kinematics
+    (rotations, positions), against which the choice is checked: the feet point forward on every
+    rig, so a hip line whose left and right are swapped (in the names, or by a mirrored export)
+    is turned round, and a stated `forward:` that the body contradicts is doubted."""
     up = up_vector(up_axis)
     hips = hip_pair(clip, settings) if settings.forward == "auto" else None
     if hips is not None:
-        left, right = hips
+        return _hip_line_facing(clip, settings, up, posed[1], hips)
+    if settings.root != "auto":
+        joint = _joint(clip, settings.root, "root")
+    else:
+        joint = fallback_root_joint(clip, posed[1])
+    name = clip.skeleton.names[joint]
+    if settings.forward != "auto":
+        axis_name = settings.forward
+        vectors = _joint_axis(joint, axis_name)
+        guess = _doubt_stated_forward(clip, settings, up, posed, joint, axis_name)
+        return Facing(label=f"{name} axis {axis_name}", vectors=vectors, guess=guess)
+    axis_name, vertical = _horizontal_axis(posed[0][:, joint], up, "-y" if up_axis == "z" else "+z")
+    # A flat track set (Godot) too: its root track's forward axis is a convention the file does
+    # not state, and left and right swap with it (a strafe's sign).
+    evidence = (
+        "no hip line to face by (no left/right hips recognised)"
+        if clip.skeleton.has_hierarchy
+        else "no hip line to face by (animation tracks without the skeleton's hierarchy)"
+    )
+    if vertical is not None:
+        evidence += f"; its {vertical} axis, the usual forward, points along the up axis"
+    return Facing(
+        label=f"{name} axis {axis_name}",
+        vectors=_joint_axis(joint, axis_name),
+        notes=[
+            f"facing taken from joint {name!r} axis {axis_name} (assumed); "
+            "set `skeleton.forward` if the character faces another way"
+        ],
+        guess=DetectionGuess(
+            "facing",
+            f"{name} {axis_name}",
+            evidence,
+            "skeleton: {forward: +z} (the root joint's forward axis) or name the hips",
+        ),
+    )
 
-        def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
-            return quat.cross(pos[:, left] - pos[:, right], up)
 
-        return Facing(label="hip line", vectors=from_hip_line, guess=_doubt_stated_hips(clip, hips))
-    axis_name = settings.forward if settings.forward != "auto" else ("-y" if up_axis == "z" else "+z")
+# The feet contradict (or confirm) a facing when ankle-to-toe and the facing agree, on average
+# over the take, below minus (above) this cosine: 120 (60) degrees apart. Toes turn out 10-20 deg.
+_FEET_AGREE = 0.5
+
+
+def _hip_line_facing(
+    clip: Clip, settings: RigSettings, up: FloatArray, world_pos: FloatArray, hips: tuple[int, int]
+) -> Facing:
+    left, right = hips
+    names = clip.skeleton.names
+    stated = settings.left_hip != "auto" or settings.right_hip != "auto"
+    feet = feet_forward(clip, settings, world_pos, up)
+    agree = (
+        _agreement(feet, quat.cross(world_pos[:, left] - world_pos[:, right], up))
+        if feet is not None
+        else None
+    )
+    swapped = f"skeleton: {{left_hip: {names[right]}, right_hip: {names[left]}}}"
+    if agree is not None and agree < -_FEET_AGREE and not stated:
+        # The toes say the hip line faces backwards: the joint named left is on the character's
+        # right. Measured facing the feet's way; a swapped pair in the manifest confirms it.
+        def reversed_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
+            return quat.cross(pos[:, right] - pos[:, left], up)
+
+        evidence = (
+            f"the toes point {_degrees(agree):.0f} deg away from the way the hip line faces: "
+            f"{names[left]} is on the character's right; left and right are swapped in the joint "
+            "names, or the export is mirrored, and then turns and sidesteps read with the wrong sign"
+        )
+        return Facing(
+            label="hip line, reversed (the feet point the other way)",
+            vectors=reversed_hip_line,
+            notes=[f"facing: {evidence}; measured facing the way the feet point"],
+            guess=DetectionGuess("facing", "the way the feet point", evidence, swapped),
+        )
+
+    def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
+        return quat.cross(pos[:, left] - pos[:, right], up)
+
+    if stated and agree is not None:
+        # The body settles the manifest's pair: the feet agree (whatever the names say) or not.
+        guess = None
+        if agree < -_FEET_AGREE:
+            guess = DetectionGuess(
+                "facing",
+                f"backwards (left_hip {names[left]}, right_hip {names[right]}, the manifest's)",
+                f"the toes point {_degrees(agree):.0f} deg away from the way this hip line faces",
+                swapped,
+                stated=True,
+            )
+    else:
+        guess = _doubt_stated_hips(clip, hips) if stated else None
+    return Facing(label="hip line", vectors=from_hip_line, guess=guess)
+
+
+def _doubt_stated_forward(
+    clip: Clip,
+    settings: RigSettings,
+    up: FloatArray,
+    posed: tuple[FloatArray, FloatArray],
+    joint: int,
+    axis_name: str,
+) -> DetectionGuess | None:
+    """A guess when the manifest's `skeleton.forward` points away from where the body faces (the
+    hip line, turned by the feet if they say so, or the feet alone): LAFAN1's Hips +Z is the
+    character's left, and `forward: +z` read a walk as a sidestep. Still used."""
+    world_rot, world_pos = posed
+    body = _body_forward(clip, replace(settings, forward="auto"), up, world_pos)
+    if body is None:
+        return None
+    forward, via = body
+    stated = quat.rotate(world_rot[:, joint], np.broadcast_to(_AXIS_VECTORS[axis_name], (len(world_rot), 3)))
+    agree = _agreement(_along_ground(stated, up), forward)
+    if agree is None or agree >= _FEET_AGREE:
+        return None
+    scores: dict[str, float] = {}
+    for candidate, vector in _AXIS_VECTORS.items():
+        along = quat.rotate(world_rot[:, joint], np.broadcast_to(vector, (len(world_rot), 3)))
+        score = _agreement(_along_ground(along, up), forward)
+        scores[candidate] = -2.0 if score is None else score
+    best = max(scores, key=lambda candidate: scores[candidate])
+    name = clip.skeleton.names[joint]
+    override = (
+        f"skeleton: {{forward: {best}}}"
+        if scores[best] > 1.0 - _FEET_AGREE
+        else "drop skeleton.forward (the hip line)"
+    )
+    return DetectionGuess(
+        "facing",
+        f"{name} {axis_name} (the manifest's)",
+        f"the body ({via}) faces {_degrees(agree):.0f} deg away from the {axis_name} axis of {name}",
+        override,
+        stated=True,
+    )
+
+
+def _body_forward(
+    clip: Clip, settings: RigSettings, up: FloatArray, world_pos: FloatArray
+) -> tuple[FloatArray, str] | None:
+    """(F, 3) where the body faces along the ground, and what says so: the hip line (reversed
+    when the feet point the other way), else the feet; None without either."""
+    hips = hip_pair(clip, settings)
+    feet = feet_forward(clip, settings, world_pos, up)
+    if hips is None:
+        return (feet, "the feet") if feet is not None else None
+    hip_line = _along_ground(quat.cross(world_pos[:, hips[0]] - world_pos[:, hips[1]], up), up)
+    agree = _agreement(feet, hip_line) if feet is not None else None
+    if agree is not None and agree < -_FEET_AGREE:
+        return -hip_line, "the feet"
+    return hip_line, "the hip line"
+
+
+def _toe_of(clip: Clip, foot: int) -> int | None:
+    """The joint the foot points to: a child named toe (or ball), else its first child that is
+    not a heel; None when the foot ends the chain (its toe is only a BVH End Site)."""
+    names = clip.skeleton.names
+    below = [c for c in clip.skeleton.children(foot) if "heel" not in split_side(names[c])[1]]
+    toes = [c for c in below if any(t in split_side(names[c])[1] for t in ("toe", "ball"))]
+    found = toes or below
+    return found[0] if found else None
+
+
+def feet_forward(
+    clip: Clip, settings: RigSettings, world_pos: FloatArray, up: FloatArray
+) -> FloatArray | None:
+    """(F, 3) the two feet's ankle-to-toe vectors summed, along the ground (file units); None
+    for a rig without recognisable legs or without toe joints."""
+    body = body_joints(clip, settings)
+    if body is None or body.feet[0] == body.feet[1]:
+        return None
+    toes = [_toe_of(clip, foot) for foot in body.feet]
+    if toes[0] is None or toes[1] is None:
+        return None
+    total = sum(world_pos[:, toe] - world_pos[:, foot] for toe, foot in zip(toes, body.feet, strict=True))
+    return _along_ground(np.asarray(total), up)
+
+
+def _along_ground(vectors: FloatArray, up: FloatArray) -> FloatArray:
+    flat: FloatArray = vectors - (vectors @ up)[:, None] * up
+    return flat
+
+
+def _agreement(a: FloatArray, b: FloatArray) -> float | None:
+    """Mean cosine between ``a`` and ``b`` (F, 3) over the frames, weighted by ``a``'s length;
+    None when ``a`` or ``b`` vanishes on most frames (a foot seen end-on, no hip line)."""
+    la, lb = quat.vector_norm(a), quat.vector_norm(b)
+    scale = max(float(la.max(initial=0.0)), 1e-12)
+    valid = (la > 1e-3 * scale) & (lb > 1e-12)
+    if valid.sum() < max(2, len(a) // 2):
+        return None
+    cosines = np.einsum("ij,ij->i", a[valid], b[valid]) / (la[valid] * lb[valid])
+    return float(np.sum(cosines * la[valid]) / np.sum(la[valid]))
+
+
+def _degrees(cosine: float) -> float:
+    return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
+
+
+def _joint_axis(joint: int, axis_name: str) -> Callable[[FloatArray, FloatArray], FloatArray]:
     axis = np.array(_AXIS_VECTORS[axis_name])
-    joint = _joint(clip, settings.root, "root") if settings.root != "auto" else _fallback_root_joint(clip)
 
     def from_joint_axis(rot: FloatArray, _pos: FloatArray) -> FloatArray:
         return quat.rotate(rot[:, joint], np.broadcast_to(axis, (len(rot), 3)))
 
-    notes = []
-    guess = None
-    if settings.forward == "auto":
-        notes.append(
-            f"facing taken from joint {clip.skeleton.names[joint]!r} axis {axis_name} (assumed); "
-            "set `skeleton.forward` if the character faces another way"
-        )
-        # A flat track set (Godot) too: its root track's forward axis is a convention the file
-        # does not state, and left and right swap with it (a strafe's sign).
-        evidence = (
-            "no hip line to face by (no left/right hips recognised)"
-            if clip.skeleton.has_hierarchy
-            else "no hip line to face by (animation tracks without the skeleton's hierarchy)"
-        )
-        guess = DetectionGuess(
-            "facing",
-            f"{clip.skeleton.names[joint]} {axis_name}",
-            evidence,
-            "skeleton: {forward: +z} (the root joint's forward axis) or name the hips",
-        )
-    return Facing(
-        label=f"{clip.skeleton.names[joint]} axis {axis_name}",
-        vectors=from_joint_axis,
-        notes=notes,
-        guess=guess,
-    )
+    return from_joint_axis
+
+
+# The joint axes tried, in order, when the usual forward of a joint (+Z in Y-up files, -Y in
+# Z-up ones) points up: a Z-up file whose root keeps Y-up axes (CMU's ASF-named exports).
+_FORWARD_ORDER = ("+z", "-y", "+x", "-x", "+y", "-z")
+
+
+def _horizontal_axis(rotations: FloatArray, up: FloatArray, usual: str) -> tuple[str, str | None]:
+    """(the joint axis taken as forward, the usual axis when it had to be passed over as vertical)."""
+
+    def upright(name: str) -> float:
+        along = quat.rotate(rotations, np.broadcast_to(_AXIS_VECTORS[name], (len(rotations), 3)))
+        return float(np.mean(np.abs(along @ up)))
+
+    if upright(usual) < 0.7:
+        return usual, None
+    for name in _FORWARD_ORDER:
+        if name != usual and upright(name) < 0.5:
+            return name, usual
+    return usual, None
 
 
 def hip_height(clip: Clip, world_pos: FloatArray, up_axis: str, root: RootPoint) -> float:
@@ -551,6 +797,11 @@ def _leg_length(clip: Clip, world_pos: FloatArray, body: BodyJoints) -> float:
 # The file's unit stands unless it makes the legs this far from any body's (toddler to giant
 # creature, 0.1-5 m): a DCC export whose scale was applied twice or not at all (100x) is.
 _POSSIBLE_LEG = (0.1, 5.0)
+# ... or makes them a small child's or a giant's while a conventional unit makes them an adult's:
+# `units: cm` on a CMU take (legs 0.145 m), `units: in` on one (0.37 m), inches read as
+# centimetres (0.32 m). A child character stated in its true unit is doubted only when its legs
+# are shorter than this, and another unit would make them an adult's.
+_HUMAN_LEG = (0.4, 2.0)
 
 
 def _doubt_stated_unit(
@@ -562,11 +813,17 @@ def _doubt_stated_unit(
     if body is None:
         return None
     leg = _leg_length(clip, world_pos, body) * unit
-    low, high = _POSSIBLE_LEG
-    if leg <= 0.0 or low <= leg <= high:
+    if leg <= 0.0:
         return None
     bodily = _unit_from_length(leg / unit, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg", override)
+    adult = bodily[2] is None and abs(bodily[0] / unit - 1.0) > 1e-6
+    possible = _POSSIBLE_LEG[0] <= leg <= _POSSIBLE_LEG[1]
+    if possible and (_HUMAN_LEG[0] <= leg <= _HUMAN_LEG[1] or not adult):
+        return None
     reads = f"; the body reads {bodily[0]:.4g} m per unit" if bodily[2] is None else ""
+    if possible:  # an adult's legs in another unit (see `_HUMAN_LEG`): that unit is the advice
+        named = next((name for name, scale in UNIT_METERS.items() if abs(scale / bodily[0] - 1.0) < 1e-9), None)
+        override = f"skeleton: {{units: {named or format(bodily[0], '.6g')}}}"
     return DetectionGuess(
         "units",
         f"{unit:.4g} m per unit (the {whose}'s)",

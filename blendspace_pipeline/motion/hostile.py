@@ -367,3 +367,89 @@ def _depth_first(parents: list[int], reverse_root: bool) -> list[int]:
     for root in (j for j, p in enumerate(parents) if p < 0):
         visit(root)
     return order
+
+
+# Joint naming schemes of public mocap sources and DCCs, for the humanoid rig's joints: DAZ/Poser
+# (and CMU's Daz-friendly BVH release), CMU's ASF/AMC names, OptiTrack Motive's asset prefix,
+# MikuMikuDance's Japanese names, and names that say nothing (`joint_07`): then no hip is found.
+NAME_SCHEMES = ("daz", "asf", "prefixed", "mmd", "anonymous")
+_SCHEME_NAMES = {
+    "daz": {
+        "Hips": "hip", "UpLeg": "Thigh", "Leg": "Shin", "Foot": "Foot", "Toe": "Toe", "Spine": "abdomen",
+        "Chest": "chest", "Neck": "neck", "Head": "head", "Arm": "ShldrBend", "ForeArm": "ForearmBend",
+        "Hand": "Hand",
+    },
+    "asf": {
+        "Hips": "root", "UpLeg": "femur", "Leg": "tibia", "Foot": "foot", "Toe": "toes", "Spine": "lowerback",
+        "Chest": "thorax", "Neck": "lowerneck", "Head": "head", "Arm": "humerus", "ForeArm": "radius",
+        "Hand": "hand",
+    },
+    "mmd": {
+        "Hips": "下半身", "UpLeg": "足", "Leg": "ひざ", "Foot": "足首", "Toe": "つま先", "Spine": "上半身",
+        "Chest": "上半身2", "Neck": "首", "Head": "頭", "Arm": "腕", "ForeArm": "ひじ", "Hand": "手首",
+    },
+}  # fmt: skip
+
+
+def renamed(clip: Clip, scheme: str) -> Clip:
+    """``clip`` with its joints named as ``scheme`` (one of `NAME_SCHEMES`) names them; the motion
+    is unchanged, so it measures as ``clip`` does wherever the scheme's hips are recognised."""
+    if scheme not in NAME_SCHEMES:
+        raise ValueError(f"unknown naming scheme {scheme!r}; one of {', '.join(NAME_SCHEMES)}")
+    names = [_scheme_name(name, scheme, index) for index, name in enumerate(clip.skeleton.names)]
+    return replace(clip, skeleton=replace(clip.skeleton, names=tuple(names)), notes=list(clip.notes))
+
+
+def _scheme_name(name: str, scheme: str, index: int) -> str:
+    if scheme == "anonymous":
+        return f"joint_{index:02d}"
+    side = next((s for s in ("Left", "Right") if name.startswith(s)), "")
+    base = name[len(side) :]
+    if scheme == "prefixed":
+        return f"Skeleton1_{side[:1]}{'Thigh' if base == 'UpLeg' else base}"
+    table = _SCHEME_NAMES[scheme]
+    if base not in table:
+        return name  # a joint the scheme has no name for (a top `Root`) keeps its own
+    if scheme == "daz":
+        return f"{side[:1].lower()}{table[base]}" if side else table[base]
+    if scheme == "asf":
+        return f"{side[:1].lower()}{table[base]}" if side else table[base]
+    return f"{'左' if side == 'Left' else '右'}{table[base]}" if side else table[base]
+
+
+def sides_swapped(clip: Clip) -> Clip:
+    """``clip`` with every Left joint named Right and the other way round, the motion unchanged:
+    an export whose side labels are swapped (the hip line then faces backwards)."""
+    names = [
+        ("Right" + n[4:]) if n.startswith("Left") else ("Left" + n[5:]) if n.startswith("Right") else n
+        for n in clip.skeleton.names
+    ]
+    return replace(clip, skeleton=replace(clip.skeleton, names=tuple(names)), notes=list(clip.notes))
+
+
+def mirrored_export(clip: Clip) -> Clip:
+    """``clip`` written through a mirror across the world X = 0 plane (a left-handed export):
+    names unchanged, every offset and translation's X negated and every rotation reflected. The
+    body is then its own mirror image: forward and speed are the same, turns and sidesteps have
+    the other sign, and the joint named left is on the character's right."""
+
+    def reflect(q: FloatArray) -> FloatArray:
+        out = q.copy()
+        out[..., 1] *= -1.0  # M R M for the X reflection: x stays, y and z flip, w stays
+        out[..., 2] *= -1.0
+        return out
+
+    translations = clip.translations.copy()
+    translations[..., 0] *= -1.0
+    rest = clip.skeleton.rest_translations.copy()
+    rest[:, 0] *= -1.0
+    skeleton = replace(
+        clip.skeleton, rest_translations=rest, rest_rotations=reflect(clip.skeleton.rest_rotations)
+    )
+    return replace(
+        clip,
+        skeleton=skeleton,
+        rotations=reflect(clip.rotations),
+        translations=translations,
+        notes=list(clip.notes),
+    )

@@ -148,8 +148,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         )
     # The up axis, like the unit, belongs to the file: read from the body over every frame.
     up_axis, up_note, up_guess = resolve_up_guess(clip, whole_pos, settings)
-    root = resolve_root(clip, settings)
-    facing = resolve_facing(clip, settings, up_axis)
+    root = resolve_root(clip, settings, whole_pos)
+    facing = resolve_facing(clip, settings, up_axis, (whole_rot, whole_pos))
     # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
     # `range:` entry of one take gets the same unit (and so comparable speeds).
     meters_per_unit, units_source, units_guess = resolve_units_guess(clip, whole_pos, settings, up_axis, root)
@@ -183,6 +183,12 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         notes.append(f"range: auto chose [{range_used[0]:.3f}, {range_used[1]:.3f}] s")
     notes += [n for n in (up_note,) if n]
     notes += root.notes + facing.notes
+    repeated = _repeated_names(clip.skeleton.names)
+    if repeated:
+        notes.append(
+            f"joint name(s) used twice or more: {', '.join(repeated)}; a `skeleton:` setting "
+            "naming one means the first in the file"
+        )
     guesses += [g for g in (up_guess, units_guess, root.guess, facing.guess) if g is not None]
     if units_guess is not None and units_guess.stated:
         notes.append(
@@ -247,6 +253,16 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         skeleton_key=skeleton_key(clip),
         partial_stride=partial_stride,
     )
+
+
+def _repeated_names(names: tuple[str, ...] | list[str]) -> list[str]:
+    seen: set[str] = set()
+    repeated: dict[str, None] = {}
+    for name in names:
+        if name in seen:
+            repeated[name] = None
+        seen.add(name)
+    return list(repeated)
 
 
 # The feet pass each other by this fraction of the leg's length at least: a step, not a shuffle.

@@ -44,8 +44,10 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # (`joint_parents`), so `inconsistent-skeleton` sees another hierarchy; 8: the stride-sway fit
 # keeps the facing's mean (direction, forward and lateral speed were off by up to 17 deg); 9: a
 # stepping clip with no whole stride says so (`partial_stride`), and a file's unit that makes the
-# legs no body's is a `units` guess; 10: a guess records whether the value was stated (`stated`).
-MEASUREMENT_REVISION = 10
+# legs no body's is a `units` guess; 10: a guess records whether the value was stated (`stated`);
+# 11: the feet check the hip line (swapped labels, mirrored exports), more naming schemes find
+# the hips, stated forward / root / units the body contradicts are doubted, a moving fallback root.
+MEASUREMENT_REVISION = 11
 
 
 def cache_key(

@@ -84,13 +84,13 @@ def _sample_doc(sample: Sample, out_dir: Path, *, events: bool = True) -> Sample
 
 
 def _used_range(clip: MeasuredClip) -> list[float] | None:
-    """The seconds of the file the clip's numbers come from, when its entry trims it: the frames
+    """The seconds of the file the clip's numbers come from, when not all of it: the frames
     measured, not the range asked for (a Godot clip resampled at 30.4 fps used 0.263-0.987 s of
-    `range: [0.25, 1.0]`; its duration and speeds are of those frames)."""
-    if clip.time_range is None:
-        return None
+    `range: [0.25, 1.0]`; its duration and speeds are of those frames), and a take whose first
+    frame, a rest pose, was left out starts at its second (contacts and markers count from there)."""
     used = clip.measurement.range_used
-    return [float(v) for v in (used if used is not None else clip.time_range)]
+    span = used if used is not None else clip.time_range
+    return None if span is None else [float(v) for v in span]
 
 
 def _markers(contacts: dict[str, list[list[float]]] | None, duration: float) -> list[MarkerDoc] | None:

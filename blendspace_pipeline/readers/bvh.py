@@ -123,7 +123,7 @@ def parse(path: Path) -> tuple[BvhHeader, FloatArray]:
         block: bytes | memoryview = memoryview(raw)[head_end:end]
     else:
         # A generated clip's provenance is a comment after the last frame; it is not motion data.
-        text = _without_provenance(raw.decode("utf-8", errors="replace"))
+        text = _without_provenance(_decoded(raw))
         header, head_end = _split_header(text, path)
         data_start = text.count("\n", 0, head_end) + 1
         block = text[head_end:].encode()
@@ -200,7 +200,26 @@ def _head_bounds(
 
 
 def _text(path: Path) -> str:
-    return _raw(path).decode("utf-8", errors="replace")
+    return _decoded(_raw(path))
+
+
+# Encodings a BVH's joint names come in besides UTF-8, tried in order only when the bytes are not
+# UTF-8: Shift-JIS (cp932; MikuMikuDance's `左足`, most Japanese tools) then Windows-1252
+# (accents), which takes any bytes. A name read as U+FFFD would match nothing the manifest names.
+_LEGACY_ENCODINGS = ("cp932", "cp1252")
+
+
+def _decoded(raw: bytes) -> str:
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        pass
+    for encoding in _LEGACY_ENCODINGS:
+        try:
+            return raw.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    return raw.decode("utf-8", errors="replace")
 
 
 def _raw(path: Path) -> bytes:

@@ -297,7 +297,7 @@ def _unit_of(clip: Clip, settings: RigSettings, up_axis: str) -> float:
     if clip.meters_per_unit is not None:
         return clip.meters_per_unit
     positions = forward_kinematics(clip)[1]
-    return resolve_units(clip, positions, settings, up_axis, resolve_root(clip, settings))[0]
+    return resolve_units(clip, positions, settings, up_axis, resolve_root(clip, settings, positions))[0]
 
 
 def contact_vote(

@@ -22,7 +22,7 @@ from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.root_motion import decompose, ground_basis
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.file_names import safe_file_stem
-from blendspace_pipeline.motion.joint_names import split_side
+from blendspace_pipeline.motion.joint_names import letter_partner, split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 _TRAILING_INDEX = re.compile(r"_\d+$")
@@ -35,11 +35,12 @@ _SIDE_PATTERNS = (
     re.compile(r"(?P<side>LEFT|RIGHT)"),
     # Single letters only as a separated token (thigh.L, L_Thigh, hand_r) or a camel prefix (LHand).
     re.compile(r"(?:^|(?<=[._\-\s:|]))(?P<side>[LRlr])(?=$|[._\-\s:|\d])"),
-    re.compile(r"^(?:[a-z]+_)?(?P<side>[LR])(?=[A-Z])"),
+    re.compile(r"^(?:[A-Za-z0-9]+_)?(?P<side>[LRlr])(?=[A-Z])"),  # DAZ's lThigh, Skeleton1_LThigh
+    re.compile(r"(?P<side>左|右)"),  # MikuMikuDance
 )
 _OPPOSITE = {
     "Left": "Right", "Right": "Left", "left": "right", "right": "left", "LEFT": "RIGHT", "RIGHT": "LEFT",
-    "L": "R", "R": "L", "l": "r", "r": "l",
+    "L": "R", "R": "L", "l": "r", "r": "l", "左": "右", "右": "左",
 }  # fmt: skip
 
 
@@ -74,9 +75,13 @@ def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None)
     for i, name in enumerate(names):
         stripped.setdefault(_TRAILING_INDEX.sub("", name), []).append(i)
     unpaired = []
+    known = frozenset(names)
     for i, name in enumerate(names):
         side, _ = split_side(name)
         if not side:
+            by_letter = letter_partner(name, known)  # CMU ASF's lfemur / rfemur
+            if by_letter is not None:
+                partner[i] = index[by_letter]
             continue
         match = next((index[c] for c in _swapped(name) if c in index and c != name), None)
         if match is None:

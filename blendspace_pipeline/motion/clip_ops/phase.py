@@ -143,7 +143,9 @@ def foot_signal(
         up_axis, _ = resolve_up(clip, world_pos, settings)
     up = up_vector(up_axis)  # any signed axis: -Y and -Z up too
     forward = (
-        resolve_facing(clip, settings, up_axis).vectors(world_rot, world_pos) if facing is None else facing
+        resolve_facing(clip, settings, up_axis, (world_rot, world_pos)).vectors(world_rot, world_pos)
+        if facing is None
+        else facing
     )
     forward = forward - (forward @ up)[:, None] * up
     length = vector_norm(forward)[:, None]

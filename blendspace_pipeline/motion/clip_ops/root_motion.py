@@ -67,8 +67,8 @@ def decompose(clip: Clip, settings: RigSettings) -> RootMotion:
             f"{clip.name!r} is {up_axis}-up; generated clips are made from +Y or +Z up sources only"
         )
     basis = ground_basis(up_axis)
-    root = resolve_root(clip, settings)
-    facing = resolve_facing(clip, settings, up_axis)
+    root = resolve_root(clip, settings, world_pos)
+    facing = resolve_facing(clip, settings, up_axis, (world_rot, world_pos))
     ground = root.positions(world_pos) @ basis.T
     forward = facing.vectors(world_rot, world_pos) @ basis.T
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))

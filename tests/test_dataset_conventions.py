@@ -1,0 +1,258 @@
+"""Takes in the conventions of public mocap sources that nobody here wrote, truth by construction.
+
+`motion.hostile` re-expresses known-truth motion in other joint naming schemes (DAZ, CMU ASF,
+OptiTrack's asset prefix, MikuMikuDance's Japanese names, names that say nothing), with the side
+labels swapped, and through a mirrored (left-handed) export; and the manifest states units,
+forward axes and roots that the body contradicts. Each either measures right or says, as a
+`detection-guess`, what it could not settle; none reads a wrong number without a word.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.exporters import to_engine
+from blendspace_pipeline.exporters.unreal import CONVENTION as UNREAL
+from blendspace_pipeline.motion.clip_ops.mirror import mirror_pairs
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.hostile import (
+    NAME_SCHEMES,
+    HostileSpec,
+    mirrored_export,
+    renamed,
+    sides_swapped,
+    take,
+)
+from blendspace_pipeline.motion.measure import Measurement, measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+GAITS = (
+    GaitSpec("walk_left", speed=1.4, turn_rate=45.0, duration=2.0),
+    GaitSpec("strafe_right", speed=1.2, direction=-90.0, duration=2.0, stride_length=1.0),
+    GaitSpec("walk_back_right", speed=1.1, direction=180.0, turn_rate=-30.0, duration=2.0, stride_length=1.1),
+    GaitSpec("run_diagonal", speed=3.5, direction=45.0, turn_rate=20.0, duration=1.5, stride_length=2.4),
+)
+KEYS = ("speed", "turn_rate", "direction", "forward_speed", "lateral_speed")
+
+
+def _truth(spec: GaitSpec) -> dict[str, float]:
+    return {
+        "speed": spec.signed_speed,
+        "turn_rate": spec.turn_rate,
+        "direction": spec.direction,
+        "forward_speed": spec.forward_speed,
+        "lateral_speed": spec.lateral_speed,
+    }
+
+
+def _close(measured: Measurement, truth: dict[str, float], keys: tuple[str, ...] = KEYS) -> None:
+    for key in keys:
+        tolerance = 0.6 if key in ("turn_rate", "direction") else 0.03
+        assert measured.features[key] == pytest.approx(truth[key], abs=tolerance), key
+
+
+@pytest.mark.parametrize("scheme", [s for s in NAME_SCHEMES if s != "anonymous"])
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_naming_schemes_find_the_hips_and_measure_as_the_original(scheme: str, spec: GaitSpec) -> None:
+    """DAZ's `lThigh`, CMU ASF's `lfemur` (a side letter only a pair in one skeleton proves),
+    OptiTrack's `Skeleton1_LThigh` and MikuMikuDance's `左足` were not recognised as hips: facing
+    then came from an assumed joint axis (a walk read 90 deg sideways on a rig facing +X)."""
+    clip = generate(spec)
+    original = measure(clip, RigSettings())
+    other = measure(renamed(clip, scheme), RigSettings())
+    assert other.root.startswith("hip midpoint"), other.root
+    assert other.facing == "hip line"
+    assert not other.guesses
+    for key in KEYS:
+        assert other.features[key] == pytest.approx(original.features[key], abs=1e-9)
+    _close(other, _truth(spec))
+
+
+@pytest.mark.parametrize("scheme", [s for s in NAME_SCHEMES if s != "anonymous"])
+def test_naming_schemes_pair_every_sided_joint_for_mirroring(scheme: str) -> None:
+    clip = renamed(generate(GAITS[0]), scheme)
+    names = clip.skeleton.names
+    partners = mirror_pairs(clip.skeleton)
+    original = generate(GAITS[0]).skeleton.names
+    expected = [
+        original.index(
+            ("Right" + n[4:]) if n.startswith("Left") else ("Left" + n[5:]) if n.startswith("Right") else n
+        )
+        for n in original
+    ]
+    assert partners == expected, [(names[i], names[j]) for i, j in enumerate(partners)]
+
+
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_swapped_side_labels_are_read_by_the_feet_and_said(spec: GaitSpec) -> None:
+    """Left and right swapped in the joint names made the hip line face backwards: a walk read
+    -1.4 m/s at 180 deg and a strafe the other way, without a word. The toes point forward on
+    every rig: the facing is turned round, the numbers are true, and a guess says why; the swapped
+    pair in the manifest confirms it, the names' pair is doubted."""
+    clip = sides_swapped(generate(spec))
+    measured = measure(clip, RigSettings())
+    _close(measured, _truth(spec))
+    [guess] = measured.guesses
+    assert guess.what == "facing" and not guess.stated
+    assert "LeftUpLeg is on the character's right" in guess.evidence
+    assert guess.override == "skeleton: {left_hip: RightUpLeg, right_hip: LeftUpLeg}"
+    confirmed = measure(clip, RigSettings(left_hip="RightUpLeg", right_hip="LeftUpLeg"))
+    assert not confirmed.guesses
+    _close(confirmed, _truth(spec))
+    by_names = measure(clip, RigSettings(left_hip="LeftUpLeg", right_hip="RightUpLeg"))
+    [doubt] = by_names.guesses
+    assert doubt.what == "facing" and doubt.stated and "toes point 180 deg away" in doubt.evidence
+
+
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_a_mirrored_export_reads_forward_and_says_its_turns_may_be_mirrored(spec: GaitSpec) -> None:
+    """A left-handed (mirrored) export read forward as backward. Its body is its own mirror image:
+    speed and forward speed are true once the feet turn the facing round; the turn and sidestep
+    signs are the mirror's (indistinguishable from swapped labels), and the guess says so."""
+    measured = measure(mirrored_export(generate(spec)), RigSettings())
+    truth = _truth(spec)
+    mirrored = {**truth, "turn_rate": -truth["turn_rate"], "direction": -truth["direction"]}
+    if abs(truth["direction"]) == 180.0:
+        mirrored["direction"] = 180.0
+    mirrored["lateral_speed"] = -truth["lateral_speed"]
+    _close(measured, mirrored)
+    [guess] = measured.guesses
+    assert guess.what == "facing" and "mirrored" in guess.evidence and "wrong sign" in guess.evidence
+
+
+def test_a_stated_forward_the_body_contradicts_is_doubted_with_the_right_axis() -> None:
+    """`forward: +z` on a rig whose Hips +Z is the character's left (LAFAN1's) read a walk as a
+    sidestep without a word. Still used, now doubted, with the axis the body faces along."""
+    spec = GAITS[0]
+    clip = generate(spec)
+    wrong = measure(clip, RigSettings(forward="+x"))
+    assert wrong.features["direction"] == pytest.approx(-90.0, abs=1.0)  # used as stated: +X is its left
+    [guess] = wrong.guesses
+    assert (
+        guess.what == "facing"
+        and guess.stated
+        and "faces 90 deg away from the +x axis of Hips" in guess.evidence
+    )
+    assert guess.override == "skeleton: {forward: +z}"
+    right = measure(clip, RigSettings(forward="+z"))
+    assert not right.guesses
+    _close(right, _truth(spec))
+
+
+@pytest.mark.parametrize(
+    ("unit", "stated", "reads"),
+    [("cmu", "cm", "0.05644"), ("cmu", "in", "0.05644"), ("in", "cm", "0.0254"), ("cm", "in", "0.01")],
+)
+def test_a_stated_unit_that_makes_no_adult_is_doubted_when_another_does(
+    unit: str, stated: str, reads: str
+) -> None:
+    """`units: cm` on a CMU take (legs 0.145 m), `in` on one (0.37 m), inches read as centimetres
+    (0.32 m), centimetres as inches (2.1 m): legs within 0.1-5 m were never doubted, and walks read
+    0.25-0.6 m/s. Doubted now when a conventional unit makes the legs an adult's."""
+    clip = take(HostileSpec("walk", unit=unit, tpose_first_frame=False)).clip
+    measured = measure(clip, RigSettings(units=stated))
+    [guess] = [g for g in measured.guesses if g.what == "units"]
+    assert guess.stated and f"the body reads {reads}" in guess.evidence
+    settled = measure(clip, RigSettings(units={"cmu": 0.0254 / 0.45, "in": 0.0254, "cm": 0.01}[unit]))
+    assert not [g for g in settled.guesses if g.what == "units"]
+
+
+def test_a_child_in_its_own_unit_is_not_doubted() -> None:
+    """Legs of 0.45 m stated in centimetres: a child, not a mistake (inches would make an adult)."""
+    spec = GaitSpec("walk", speed=1.0, duration=1.0)
+    clip = generate(spec, meters_per_unit=0.01)
+    child = measure(clip, RigSettings(units=0.0055))  # legs 0.82 m * 0.55 = 0.45 m
+    assert not [g for g in child.guesses if g.what == "units"]
+
+
+def test_a_stated_root_that_stays_put_is_doubted() -> None:
+    """`root: Root` on a take whose top joint sits at the origin while the hips walk read the
+    walk as standing still, without a word."""
+    clip = take(HostileSpec("walk", unit="cm")).clip
+    still = measure(clip, RigSettings(root="Root"))
+    assert abs(still.features["speed"]) < 0.01  # used as stated
+    [guess] = [g for g in still.guesses if g.what == "root"]
+    assert guess.stated and "Root travels 0 % as far as the hips" in guess.evidence
+    assert not [g for g in measure(clip, RigSettings(root="Hips")).guesses if g.what == "root"]
+
+
+def test_without_hips_the_root_is_the_top_joint_that_travels() -> None:
+    """Names that say nothing and a static top joint at the origin (a MotionBuilder reference):
+    the fallback root was that joint, and every clip read 0 m/s and a unit of 7.8 m. Now the
+    highest joint that travels with the body carries the root motion (a guess, said)."""
+    spec = HostileSpec("walk", unit="cm", speed=1.4, tpose_first_frame=False)
+    hostile = take(spec)
+    clip = renamed(hostile.clip, "anonymous")
+    first, last = hostile.steady_seconds
+    measured = measure(clip, RigSettings(), (first, last))
+    assert measured.root == "joint_01"  # the hips, under the static joint_00
+    assert measured.meters_per_unit == pytest.approx(0.01)
+    assert measured.features["speed"] == pytest.approx(1.4, abs=0.05)
+    assert {g.what for g in measured.guesses} >= {"root", "facing"}
+
+
+def test_without_hips_a_vertical_forward_axis_is_passed_over() -> None:
+    """A Z-up file whose root joint keeps its own Y-up axes: its local -Y, the usual forward of
+    Z-up files, points down, and a walk read 38 deg/s for 45. The most horizontal axis is taken
+    instead, and the guess says the usual one was vertical."""
+    spec = GaitSpec("walk", speed=1.4, turn_rate=45.0, duration=2.0)
+    clip = renamed(generate(spec, up="z"), "anonymous")
+    measured = measure(clip, RigSettings(up="z"))
+    assert measured.facing == "joint_00 axis +z"
+    [guess] = [g for g in measured.guesses if g.what == "facing"]
+    assert "its -y axis, the usual forward, points along the up axis" in guess.evidence
+    _close(measured, _truth(spec), ("turn_rate", "direction"))
+
+
+def test_shift_jis_joint_names_are_read_as_written(tmp_path: Path) -> None:
+    """MikuMikuDance's BVH exports are Shift-JIS: its names read as U+FFFD, matching nothing."""
+    clip = renamed(generate(GAITS[0]), "mmd")
+    path = tmp_path / "walk.bvh"
+    write_bvh_clip(clip, path)
+    path.write_bytes(path.read_text(encoding="utf-8").encode("cp932"))
+    [read] = read_clips(path)
+    assert read.skeleton.names == clip.skeleton.names
+    assert measure(read, RigSettings()).root == "hip midpoint (左足, 右足)"
+
+
+def test_a_dropped_rest_frame_is_the_range_the_document_and_markers_count_from(tmp_path: Path) -> None:
+    """A take whose first frame is a T-pose is measured from its second: its document said no
+    range, and exported sync markers counted from the file's first frame, one frame early."""
+    spec = GaitSpec("walk", speed=1.4, duration=2.0)
+    (tmp_path / "clips").mkdir()
+    write_bvh_clip(generate(spec, tpose_first_frame=True), tmp_path / "clips" / "walk.bvh")
+    for other in GAITS[1:]:
+        write_bvh_clip(generate(other), tmp_path / "clips" / f"{other.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    assert main(["build", str(manifest), "--no-fix", "--out", str(tmp_path / "out")]) in (0, 1)
+    doc = json.loads((tmp_path / "out" / "t.blendspace.json").read_text(encoding="utf-8"))
+    [walk] = [s for s in doc["samples"] if s["name"] == "walk"]
+    assert walk["clip"]["range"] == pytest.approx([1 / 30, 2.0], abs=1e-4)
+    [other] = [s for s in doc["samples"] if s["name"] == "strafe_right"]
+    assert other["clip"]["range"] is None
+    document = BlendSpaceDocument.model_validate(doc)
+    [engine] = [s for s in to_engine(document, UNREAL).samples if s.name == "walk"]
+    assert walk["markers"]
+    assert [t for _, t in engine.markers] == pytest.approx(
+        [m["time"] + 1 / 30 for m in walk["markers"]], abs=1e-5
+    )
+
+
+def test_a_joint_name_used_twice_is_noted() -> None:
+    """Two joints of one name: a `skeleton:` setting naming it can mean only one (the first)."""
+    clip = generate(GAITS[0])
+    names = list(clip.skeleton.names)
+    names[names.index("LeftHand")] = "RightHand"
+    doubled = replace(clip, skeleton=replace(clip.skeleton, names=tuple(names)))
+    [note] = [n for n in measure(doubled, RigSettings()).notes if "used twice" in n]
+    assert "RightHand" in note
+    assert not [n for n in measure(clip, RigSettings()).notes if "used twice" in n]
