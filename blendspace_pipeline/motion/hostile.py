@@ -410,9 +410,7 @@ def _scheme_name(name: str, scheme: str, index: int) -> str:
     table = _SCHEME_NAMES[scheme]
     if base not in table:
         return name  # a joint the scheme has no name for (a top `Root`) keeps its own
-    if scheme == "daz":
-        return f"{side[:1].lower()}{table[base]}" if side else table[base]
-    if scheme == "asf":
+    if scheme in ("daz", "asf"):  # a lower-case side letter: lThigh, lfemur
         return f"{side[:1].lower()}{table[base]}" if side else table[base]
     return f"{'左' if side == 'Left' else '右'}{table[base]}" if side else table[base]
 
