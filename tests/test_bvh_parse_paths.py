@@ -96,7 +96,7 @@ def paths(monkeypatch: pytest.MonkeyPatch) -> Paths:
 
 def _slow_values(path: Path) -> np.ndarray:
     """The line-by-line walk alone: (frames, channels)."""
-    text = bvh._without_provenance(bvh._text(path))
+    text = bvh._without_provenance(bvh.bvh_text(path))
     header, head_end = bvh._split_header(text, path)
     start = text.count("\n", 0, head_end) + 1
     return bvh._motion_slow(text[head_end:].split("\n"), start, header, path)

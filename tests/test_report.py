@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import struct
+import zlib
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -335,11 +337,29 @@ def test_png_file_is_read_back_by_oiio_pixel_for_pixel_as_srgb(tmp_path: Path) -
         assert not image.has_error, image.geterror()
         assert (image.spec().width, image.spec().height, image.spec().nchannels) == (width, height, 3)
         assert np.array_equal(image.get_pixels(UINT8), pixels)
-        assert "srgb" in image.spec().get_string_attribute("oiio:ColorSpace").lower()
+        # libpng drops an optional chunk with a bad CRC without a word: the chunks are checked here.
+        data = path.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        chunks, at = [], 8
+        while at < len(data):
+            (length,) = struct.unpack(">I", data[at : at + 4])
+            kind, body = data[at + 4 : at + 8], data[at + 8 : at + 8 + length]
+            (crc,) = struct.unpack(">I", data[at + 8 + length : at + 12 + length])
+            assert crc == zlib.crc32(body, zlib.crc32(kind)), kind
+            chunks.append((kind, body))
+            at += 12 + length
+        assert [kind for kind, _ in chunks] == [b"IHDR", b"sRGB", b"gAMA", b"cHRM", b"IDAT", b"IEND"]
+        assert chunks[0][1] == struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+        assert chunks[1][1] == b"\x00" and struct.unpack(">I", chunks[2][1]) == (45455,)
+        assert struct.unpack(">8I", chunks[3][1]) == (31270, 32900, 64000, 33000, 30000, 60000, 15000, 6000)
+        rows = np.frombuffer(zlib.decompress(chunks[4][1]), dtype=np.uint8).reshape(height, 1 + 3 * width)
+        assert not rows[:, 0].any() and np.array_equal(rows[:, 1:].reshape(height, width, 3), pixels)
     with pytest.raises(ValueError, match="8-bit RGB"):
         png_file(np.zeros((4, 4, 4), dtype=np.uint8))
     with pytest.raises(ValueError, match="8-bit RGB"):
         png_file(np.zeros((4, 4, 3), dtype=np.float32))
+    with pytest.raises(ValueError, match="8-bit RGB"):
+        png_file(np.zeros((0, 4, 3), dtype=np.uint8))
 
 
 def _pixel(pixels: np.ndarray, x: float, y: float) -> tuple[float, float, float]:

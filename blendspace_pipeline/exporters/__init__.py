@@ -16,6 +16,7 @@ from pathlib import Path
 from types import ModuleType
 
 from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.motion.notes import REST_FRAME_NOTE
 from blendspace_pipeline.report.atomic import atomic_path
 from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument, SampleDoc
 from blendspace_pipeline.space.layers_doc import parse_layers
@@ -70,8 +71,10 @@ class EngineSample:
     # Foot-down sync markers (name, seconds from the start of the clip's file: the measured range's
     # own times shifted by its `range:` start), for engines that sync by markers (Unreal).
     markers: tuple[tuple[str, float], ...] = ()
-    # The seconds of the source file the sample was measured on, when a `range:` trimmed it.
+    # The seconds of the source file the sample was measured on, when a `range:` trimmed it or its
+    # first frame, a rest pose, was left out (``rest_frame``).
     trim: tuple[float, float] | None = None
+    rest_frame: bool = False
 
 
 @dataclass(frozen=True)
@@ -181,6 +184,7 @@ def to_engine(doc: BlendSpaceDocument, convention: Convention, source: str = "")
             generated=s.generated,
             markers=_markers(s),
             trim=_trim(s),
+            rest_frame=s.clip is not None and REST_FRAME_NOTE in s.clip.notes,
         )
         for s in doc.samples
     ]
@@ -203,7 +207,8 @@ def _engine_axis(axis: AxisDoc, factor: float, unit: str, flipped: bool) -> Engi
 
 
 def _trim(sample: SampleDoc) -> tuple[float, float] | None:
-    """The span of its file a take was measured on: set only by a `range:` (or `range: auto`)."""
+    """The span of its file a take was measured on, when not all of it: a `range:` (or `range:
+    auto`), or its first frame, a rest pose, left out."""
     clip = sample.clip
     if clip is None or not clip.range or sample.generated:
         return None
@@ -223,11 +228,13 @@ def common_notes(space: EngineSpace, convention: Convention, layer_advice: str) 
     for sample in space.samples:
         if sample.trim is not None:
             # The exports name clips, and engines play a clip file whole: a take measured over a
-            # `range:` (start, walk, stop) would blend its start and stop too.
+            # `range:` (start, walk, stop) would blend its start and stop too, and a rest pose
+            # left in the file pops at the start of every loop.
+            why = " (its first frame, a rest pose, left out)" if sample.rest_frame else ""
             notes.append(
                 f"{sample.name} was measured on {sample.trim[0]:.2f}-{sample.trim[1]:.2f} s of "
-                f"{Path(sample.source).name}: {convention.engine} plays the whole file unless that span is "
-                "imported as its own clip (or the file is cut to it)"
+                f"{Path(sample.source).name}{why}: {convention.engine} plays the whole file unless that span "
+                "is imported as its own clip (or the file is cut to it)"
             )
     generated = [s.name for s in space.samples if s.generated]
     if generated:

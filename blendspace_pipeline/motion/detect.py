@@ -413,64 +413,76 @@ def resolve_root(clip: Clip, settings: RigSettings, world_pos: FloatArray) -> Ro
     )
 
 
-def fallback_root_joint(clip: Clip, world_pos: FloatArray) -> int:
-    """Without hips: a joint literally called root if there is one, else the first root of the
-    hierarchy; but when that one stays put while the body travels (a static top joint at the
-    origin, as MikuMikuDance's `全ての親` or a MotionBuilder reference), the highest joint that
-    travels with the body. A root-motion joint on the ground travels: it stays the choice."""
+def named_root_joint(clip: Clip) -> int:
+    """A joint literally called root if there is one, else the first root of the hierarchy: the
+    joint whose axes a stated `skeleton.forward` names when `skeleton.root` is not set."""
     lowered = [name.lower() for name in clip.skeleton.names]
     named = next((lowered.index(c) for c in ("root", "root_jnt", "rootjoint") if c in lowered), None)
-    chosen = 0 if named is None else named
+    return 0 if named is None else named
+
+
+def fallback_root_joint(clip: Clip, world_pos: FloatArray) -> int:
+    """Without hips: `named_root_joint`, unless that joint never moves while the body does (a
+    static top joint at the origin: MikuMikuDance's `全ての親`, a MotionBuilder reference); then
+    the highest joint that moves. A property of the rig, not of the take: a static reference is
+    static in every take, so an idle or in-place take of the rig gets the same joint as a walk
+    (a ground-level root-motion joint moves or turns in a take that goes anywhere)."""
+    chosen = named_root_joint(clip)
     if not clip.skeleton.has_hierarchy or len(world_pos) < 2:
         return chosen
-    travel = _travel(world_pos)
-    body = float(np.median(travel))
-    if body <= _still_travel(world_pos) or travel[chosen] >= _MOVES_WITH_BODY * body:
+    extent = _extent(world_pos)
+    still = 1e-4 * _body_size(world_pos)
+    if extent[chosen] > still or not (extent > still).any():
         return chosen
-    moving = [j for j in range(clip.skeleton.joint_count) if travel[j] >= _MOVES_WITH_BODY * body]
+    moving = [j for j in range(clip.skeleton.joint_count) if extent[j] > still]
     return min(moving, key=lambda j: (_depth_below(clip, j, -1), j))
 
 
-# A joint moves with the body when its ground track is at least this share of the median joint's.
-_MOVES_WITH_BODY = 0.5
+def _extent(world_pos: FloatArray) -> FloatArray:
+    """(J,) how far each joint gets from where it starts over the take (file units): what a
+    walk's travel shows and an in-place take's sway and bob barely do."""
+    extent: FloatArray = quat.vector_norm(world_pos - world_pos[:1]).max(axis=0)
+    return extent
 
 
-def _travel(world_pos: FloatArray) -> FloatArray:
-    """(J,) each joint's path length over the take, in file units, at about 100 points along it
-    (frame by frame, a mocap take's jitter adds up to metres over a long take). In 3D: the up
-    axis may not be known yet, and a walk's travel dwarfs its bob."""
-    sampled = world_pos[:: max(1, len(world_pos) // 100)]
-    travel: FloatArray = quat.vector_norm(np.diff(sampled, axis=0)).sum(axis=0)
-    return travel
-
-
-def _still_travel(world_pos: FloatArray) -> float:
-    """Path length below which a take does not travel: a tenth of the body's size."""
+def _body_size(world_pos: FloatArray) -> float:
     frame = world_pos[len(world_pos) // 2]
-    return 0.1 * float(np.max(frame.max(axis=0) - frame.min(axis=0)))
+    return float(np.max(frame.max(axis=0) - frame.min(axis=0)))
 
 
 def _doubt_stated_root(
     clip: Clip, settings: RigSettings, world_pos: FloatArray, joint: int
 ) -> DetectionGuess | None:
-    """A guess when the manifest's `skeleton.root` stays put while the body travels (a dataset's
-    static `joint_Root` at the origin read a 1.4 m/s walk as standing still): still used."""
+    """A guess when the manifest's `skeleton.root` stays put while the hips (or the body) get
+    somewhere (a dataset's static `joint_Root` at the origin read a 1.4 m/s walk as standing
+    still): still used. An in-place take, whose hips only sway and bob, is not doubted."""
     if not clip.skeleton.has_hierarchy or len(world_pos) < 2:
         return None
-    travel = _travel(world_pos)
+    extent = _extent(world_pos)
     hips = hip_pair(clip, settings)
-    body = float(np.mean(travel[list(hips)])) if hips is not None else float(np.median(travel))
-    if body <= _still_travel(world_pos) or travel[joint] >= 0.1 * body:
+    body = float(np.mean(extent[list(hips)])) if hips is not None else float(np.median(extent))
+    if body <= _TRAVELS * _body_size(world_pos) or extent[joint] >= 0.1 * body:
         return None
     name = clip.skeleton.names[joint]
-    via = "the hips" if hips is not None else "the body"
+    if hips is not None:
+        via, override = (
+            "the hips",
+            "skeleton: {root: auto} (the hip midpoint), or the joint that carries the motion",
+        )
+    else:
+        via, override = "the body", "skeleton: {root: <the joint that carries the motion>}"
     return DetectionGuess(
         "root",
         f"{name} (the manifest's)",
-        f"{name} travels {100.0 * travel[joint] / body:.0f} % as far as {via} over the take: the motion is elsewhere",
-        "skeleton: {root: auto} (the hip midpoint), or the joint that carries the motion",
+        f"{name} gets {100.0 * extent[joint] / body:.0f} % as far from where it starts as {via} over the take",
+        override,
         stated=True,
     )
+
+
+# A take gets somewhere when its hips get this share of the body's size from where they start:
+# a 7 s walk gets metres, an in-place cycle's sway and bob a few centimetres.
+_TRAVELS = 0.25
 
 
 def _doubt_stated_hips(clip: Clip, hips: tuple[int, int]) -> DetectionGuess | None:
@@ -502,6 +514,8 @@ def resolve_facing(
         return _hip_line_facing(clip, settings, up, posed[1], hips)
     if settings.root != "auto":
         joint = _joint(clip, settings.root, "root")
+    elif settings.forward != "auto":  # "the root joint's forward axis": the same joint in every take
+        joint = named_root_joint(clip)
     else:
         joint = fallback_root_joint(clip, posed[1])
     name = clip.skeleton.names[joint]
@@ -536,9 +550,59 @@ def resolve_facing(
     )
 
 
-# The feet contradict (or confirm) a facing when ankle-to-toe and the facing agree, on average
-# over the take, below minus (above) this cosine: 120 (60) degrees apart. Toes turn out 10-20 deg.
-_FEET_AGREE = 0.5
+# The legs contradict (or confirm) a facing when they agree with it, on average over the take,
+# below minus (above) this cosine: 120 (60) degrees apart.
+_LEGS_AGREE = 0.5
+
+
+@dataclass(frozen=True)
+class LegsSay:
+    """How the legs agree with a facing (mean cosines, see `_agreement`); None where the take
+    shows no such evidence. ``knees``: the way the knees stick out from their hip-to-ankle lines,
+    forward on every human leg that bends, standing, walking, kneeling or sitting on the heels.
+    ``toes``: ankle to toe, forward while the foot is on its sole (not when kneeling on the
+    insteps): the witness when the knees stay straight, and a second one for stated values."""
+
+    knees: float | None
+    toes: float | None
+
+    @property
+    def main(self) -> float | None:
+        return self.knees if self.knees is not None else self.toes
+
+    def reversed(self) -> bool:
+        """The legs say the facing points backwards (the toes do not say otherwise)."""
+        main = self.main
+        return (
+            main is not None
+            and main < -_LEGS_AGREE
+            and not (self.toes is not None and self.toes > _LEGS_AGREE)
+        )
+
+    def contradicted(self) -> bool:
+        """Strong enough to doubt a value the manifest states: bent knees say backwards, and the
+        toes (when the rig has them) do not say forward."""
+        return (
+            self.knees is not None
+            and self.knees < -_LEGS_AGREE
+            and not (self.toes is not None and self.toes > 0)
+        )
+
+    def confirmed(self) -> bool:
+        main = self.main
+        return main is not None and main > _LEGS_AGREE
+
+
+def legs_say(
+    clip: Clip, settings: RigSettings, world_pos: FloatArray, up: FloatArray, facing: FloatArray
+) -> LegsSay:
+    """`LegsSay` of ``facing`` (F, 3) on the take ``world_pos`` (both sampled alike)."""
+    knees = knees_forward(clip, settings, world_pos, up)
+    toes = feet_forward(clip, settings, world_pos, up)
+    return LegsSay(
+        _agreement(knees, facing) if knees is not None else None,
+        _agreement(toes, facing) if toes is not None else None,
+    )
 
 
 def _hip_line_facing(
@@ -548,46 +612,46 @@ def _hip_line_facing(
     names = clip.skeleton.names
     stated = settings.left_hip != "auto" or settings.right_hip != "auto"
     sampled = _sampled(world_pos)
-    feet = feet_forward(clip, settings, sampled, up)
-    agree = (
-        _agreement(feet, quat.cross(sampled[:, left] - sampled[:, right], up)) if feet is not None else None
-    )
+    legs = legs_say(clip, settings, sampled, up, quat.cross(sampled[:, left] - sampled[:, right], up))
     swapped = f"skeleton: {{left_hip: {names[right]}, right_hip: {names[left]}}}"
-    if agree is not None and agree < -_FEET_AGREE and not stated:
-        # The toes say the hip line faces backwards: the joint named left is on the character's
-        # right. Measured facing the feet's way; a swapped pair in the manifest confirms it.
+    if legs.reversed() and not stated:
+        # The legs say the hip line faces backwards: the joint named left is on the character's
+        # right. Measured facing the legs' way; a swapped pair in the manifest confirms it.
         def reversed_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
             return quat.cross(pos[:, right] - pos[:, left], up)
 
         evidence = (
-            f"the toes point {_degrees(agree):.0f} deg away from the way the hip line faces: "
-            f"{names[left]} is on the character's right; left and right are swapped in the joint "
-            "names, or the export is mirrored, and then turns and sidesteps read with the wrong sign"
+            f"the {_witness(legs)} point {_degrees(legs.main or 0.0):.0f} deg away from the way the hip line "
+            f"faces: {names[left]} is on the character's right. Either the joint names swap left and right "
+            "(now read right), or the export is mirrored (its turns and sidesteps then read with the "
+            "wrong sign: check a turning clip)"
         )
         return Facing(
-            label="hip line, reversed (the feet point the other way)",
+            label="hip line, reversed (the legs face the other way)",
             vectors=reversed_hip_line,
-            notes=[f"facing: {evidence}; measured facing the way the feet point"],
-            guess=DetectionGuess("facing", "the way the feet point", evidence, swapped),
+            notes=[f"facing: {evidence}; measured facing the way the legs do"],
+            guess=DetectionGuess("facing", "the way the legs face", evidence, swapped),
         )
 
     def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
         return quat.cross(pos[:, left] - pos[:, right], up)
 
-    if stated and agree is not None:
-        # The body settles the manifest's pair: the feet agree (whatever the names say) or not.
-        guess = None
-        if agree < -_FEET_AGREE:
-            guess = DetectionGuess(
-                "facing",
-                f"backwards (left_hip {names[left]}, right_hip {names[right]}, the manifest's)",
-                f"the toes point {_degrees(agree):.0f} deg away from the way this hip line faces",
-                swapped,
-                stated=True,
-            )
-    else:
-        guess = _doubt_stated_hips(clip, hips) if stated else None
+    guess = None
+    if stated and legs.contradicted():
+        guess = DetectionGuess(
+            "facing",
+            f"backwards (left_hip {names[left]}, right_hip {names[right]}, the manifest's)",
+            f"the {_witness(legs)} point {_degrees(legs.main or 0.0):.0f} deg away from the way this hip line faces",
+            swapped,
+            stated=True,
+        )
+    elif stated and not legs.confirmed():  # the body cannot settle it: the names can
+        guess = _doubt_stated_hips(clip, hips)
     return Facing(label="hip line", vectors=from_hip_line, guess=guess)
+
+
+def _witness(legs: LegsSay) -> str:
+    return "knees" if legs.knees is not None else "toes"
 
 
 def _doubt_stated_forward(
@@ -598,9 +662,9 @@ def _doubt_stated_forward(
     joint: int,
     axis_name: str,
 ) -> DetectionGuess | None:
-    """A guess when the manifest's `skeleton.forward` points away from where the body faces (the
-    hip line, turned by the feet if they say so, or the feet alone): LAFAN1's Hips +Z is the
-    character's left, and `forward: +z` read a walk as a sidestep. Still used."""
+    """A guess when the manifest's `skeleton.forward` points away from where the body faces
+    (`_body_forward`): LAFAN1's Hips +Z is the character's left, and `forward: +z` read a walk as
+    a sidestep. Still used."""
     world_rot, world_pos = _sampled(posed[0]), _sampled(posed[1])
     body = _body_forward(clip, replace(settings, forward="auto"), up, world_pos)
     if body is None:
@@ -608,7 +672,7 @@ def _doubt_stated_forward(
     forward, via = body
     stated = quat.rotate(world_rot[:, joint], np.broadcast_to(_AXIS_VECTORS[axis_name], (len(world_rot), 3)))
     agree = _agreement(_along_ground(stated, up), forward)
-    if agree is None or agree >= _FEET_AGREE:
+    if agree is None or agree >= _LEGS_AGREE:
         return None
     scores: dict[str, float] = {}
     for candidate, vector in _AXIS_VECTORS.items():
@@ -619,7 +683,7 @@ def _doubt_stated_forward(
     name = clip.skeleton.names[joint]
     override = (
         f"skeleton: {{forward: {best}}}"
-        if scores[best] > 1.0 - _FEET_AGREE
+        if scores[best] > 1.0 - _LEGS_AGREE
         else "drop skeleton.forward (the hip line)"
     )
     return DetectionGuess(
@@ -635,16 +699,45 @@ def _body_forward(
     clip: Clip, settings: RigSettings, up: FloatArray, world_pos: FloatArray
 ) -> tuple[FloatArray, str] | None:
     """(F, 3) where the body faces along the ground, and what says so: the hip line (reversed
-    when the feet point the other way), else the feet; None without either."""
+    when bent knees contradict it, see `LegsSay.contradicted`); None without recognisable hips.
+    What a stated value is checked against: the toes alone never doubt one."""
     hips = hip_pair(clip, settings)
-    feet = feet_forward(clip, settings, world_pos, up)
     if hips is None:
-        return (feet, "the feet") if feet is not None else None
+        return None
     hip_line = _along_ground(quat.cross(world_pos[:, hips[0]] - world_pos[:, hips[1]], up), up)
-    agree = _agreement(feet, hip_line) if feet is not None else None
-    if agree is not None and agree < -_FEET_AGREE:
-        return -hip_line, "the feet"
+    if legs_say(clip, settings, world_pos, up, hip_line).contradicted():
+        return -hip_line, "the hip line, reversed by the legs"
     return hip_line, "the hip line"
+
+
+def knees_forward(
+    clip: Clip, settings: RigSettings, world_pos: FloatArray, up: FloatArray
+) -> FloatArray | None:
+    """(F, 3) how far the knees stick out from their hip-to-ankle lines, both legs summed, along
+    the ground (file units; a straight leg adds nothing, a twist joint on the line neither); None
+    for a rig without recognisable legs or without a joint between hip and ankle."""
+    body = body_joints(clip, settings)
+    if body is None:
+        return None
+    parents = clip.skeleton.parents
+    total = np.zeros((len(world_pos), 3))
+    found = False
+    for hip, foot in zip(body.hips, body.feet, strict=True):
+        chain = []
+        joint = parents[foot]
+        while joint >= 0 and joint != hip:
+            chain.append(joint)
+            joint = parents[joint]
+        if joint != hip or not chain:
+            continue
+        line = world_pos[:, foot] - world_pos[:, hip]
+        length = quat.vector_norm(line)[:, None]
+        line = line / np.where(length > 0.0, length, 1.0)
+        for knee in chain:
+            out = world_pos[:, knee] - world_pos[:, hip]
+            total += out - (out * line).sum(axis=1)[:, None] * line
+        found = True
+    return _along_ground(total, up) if found else None
 
 
 def _toe_of(clip: Clip, foot: int) -> int | None:
@@ -802,11 +895,12 @@ def _leg_length(clip: Clip, world_pos: FloatArray, body: BodyJoints) -> float:
 # The file's unit stands unless it makes the legs this far from any body's (toddler to giant
 # creature, 0.1-5 m): a DCC export whose scale was applied twice or not at all (100x) is.
 _POSSIBLE_LEG = (0.1, 5.0)
-# ... or makes them a small child's or a giant's while a conventional unit makes them an adult's:
-# `units: cm` on a CMU take (legs 0.145 m), `units: in` on one (0.37 m), inches read as
-# centimetres (0.32 m). A child character stated in its true unit is doubted only when its legs
-# are shorter than this, and another unit would make them an adult's.
-_HUMAN_LEG = (0.4, 2.0)
+# ... or makes them a toddler's or a giant's while a conventional unit makes them an adult's
+# (`units: cm` on a CMU take: legs 0.145 m, walks at 0.25 m/s). Between these and `_ADULT_LEG`
+# (`units: in` on a CMU take: 0.37 m; inches read as centimetres: 0.32 m) the character may be
+# a child or a goblin in its true unit: the clip gets a note (`stated_unit_note`), not a doubt.
+_NO_ADULT_LEG = (0.25, 2.5)
+_ADULT_LEG = (0.4, 2.0)
 
 
 def _doubt_stated_unit(
@@ -823,7 +917,7 @@ def _doubt_stated_unit(
     bodily = _unit_from_length(leg / unit, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg", override)
     adult = bodily[2] is None and abs(bodily[0] / unit - 1.0) > 1e-6
     possible = _POSSIBLE_LEG[0] <= leg <= _POSSIBLE_LEG[1]
-    if possible and (_HUMAN_LEG[0] <= leg <= _HUMAN_LEG[1] or not adult):
+    if possible and (_NO_ADULT_LEG[0] <= leg <= _NO_ADULT_LEG[1] or not adult):
         return None
     reads = f"; the body reads {bodily[0]:.4g} m per unit" if bodily[2] is None else ""
     if possible:  # an adult's legs in another unit (see `_HUMAN_LEG`): that unit is the advice
@@ -837,6 +931,25 @@ def _doubt_stated_unit(
         f"the {whose}'s unit makes the legs {leg:.3g} m long{reads}",
         override,
         stated=True,
+    )
+
+
+def stated_unit_note(clip: Clip, world_pos: FloatArray, settings: RigSettings, unit: float) -> str | None:
+    """A note when the manifest's unit makes the legs a child's or a giant's (`_ADULT_LEG`) and
+    a conventional unit would make them an adult's: not doubted (a child in its true unit reads
+    the same), but said, with the numbers to check."""
+    body = body_joints(clip, settings)
+    if body is None:
+        return None
+    leg = _leg_length(clip, world_pos, body) * unit
+    if leg <= 0.0 or _ADULT_LEG[0] <= leg <= _ADULT_LEG[1]:
+        return None
+    scale, _source, guess = _unit_from_length(leg / unit, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg", "")
+    if guess is not None or abs(scale / unit - 1.0) < 1e-6:
+        return None
+    return (
+        f"`skeleton.units` makes the legs {leg:.2f} m long; {scale:.4g} m per unit would make them "
+        f"{leg / unit * scale:.2f} m (an adult's): check the unit if this is not a child or a giant"
     )
 
 

@@ -8,6 +8,7 @@ the hips and mirroring can pair left with right.
 from __future__ import annotations
 
 import re
+import unicodedata
 from functools import lru_cache
 
 from blendspace_pipeline.motion.clip import Skeleton
@@ -15,8 +16,11 @@ from blendspace_pipeline.motion.clip import Skeleton
 Side = str  # "L", "R" or ""
 
 _SEPARATED = re.compile(r"(?:^|(?<=[._\-\s:|]))(l|r|left|right)(?=$|[._\-\s:|\d])", re.IGNORECASE)
-# A side letter before a capital: `LThigh`, DAZ's `lThigh`, after an asset prefix (`Skeleton1_LThigh`).
-_CAMEL_PREFIX = re.compile(r"^(?:[A-Za-z0-9]+_)?([LRlr])(?=[A-Z])")
+# A side letter before a capital (`LThigh`, `RFOOT`, `b_LHand`); and before a capitalised word
+# only (so `C_ROOT`, `DEF_RIBS` stay centre joints): DAZ's `lThigh`, an asset prefix's
+# `Skeleton1_LThigh`.
+_CAMEL_PREFIX = re.compile(r"^(?:[a-z]+_)?(L|R)(?=[A-Z])")
+_CAMEL_WORD = re.compile(r"^(?:[A-Za-z0-9]+_)?([LRlr])(?=[A-Z][a-z])")
 _WORD = re.compile(r"(left|right)", re.IGNORECASE)
 # MikuMikuDance's Japanese names: the side is a kanji (左 left, 右 right) and the base is read
 # through `_JAPANESE` (longest first: 足首 is the ankle, 足 the leg at the hip socket).
@@ -58,7 +62,7 @@ def split_side(name: str) -> tuple[Side, str]:
         stripped = name[: word.start()] + name[word.end() :]
     else:
         separated = _SEPARATED.search(name)
-        camel = _CAMEL_PREFIX.search(name)
+        camel = _CAMEL_PREFIX.search(name) or _CAMEL_WORD.search(name)
         if separated:
             side = separated.group(1)[0].upper()
             stripped = name[: separated.start(1)] + name[separated.end(1) :]
@@ -67,6 +71,7 @@ def split_side(name: str) -> tuple[Side, str]:
             stripped = name[: camel.start(1)] + name[camel.end(1) :]
     lowered = stripped.lower()
     if not lowered.isascii():
+        lowered = unicodedata.normalize("NFKC", lowered).lower()  # full-width ＩＫ is IK
         for japanese, english in _JAPANESE:
             lowered = lowered.replace(japanese, english)
     base = re.sub(r"[^a-z]", "", lowered)

@@ -32,8 +32,10 @@ from blendspace_pipeline.motion.detect import (
     resolve_root,
     resolve_units_guess,
     resolve_up_guess,
+    stated_unit_note,
     up_vector,
 )
+from blendspace_pipeline.motion.notes import REST_FRAME_NOTE
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 # Below these a clip has no root motion worth placing (a warning, not a silent origin sample).
@@ -157,7 +159,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         clip.trimmed(first, stop), whole_pos[first:stop], settings
     ):
         first += 1
-        notes.append("first frame is a rest/T-pose and was left out of the measurement")
+        notes.append(REST_FRAME_NOTE)
     ground = _ground_basis(up_axis)
     if auto:
         span = steady_span(
@@ -191,10 +193,12 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         )
     guesses += [g for g in (up_guess, units_guess, root.guess, facing.guess) if g is not None]
     if units_guess is not None and units_guess.stated:
+        settle = "check `skeleton.units`" if units_source == "manifest" else "set `skeleton.units` to be sure"
         notes.append(
-            f"{units_guess.evidence}: the {units_source}'s {meters_per_unit:.4g} m per unit doubted; "
-            "set `skeleton.units` to be sure"
+            f"{units_guess.evidence}: the {units_source}'s {meters_per_unit:.4g} m per unit doubted; {settle}"
         )
+    elif units_source == "manifest" and (odd := stated_unit_note(clip, whole_pos, settings, meters_per_unit)):
+        notes.append(odd)
     elif units_guess is not None:
         notes.append(
             f"length unit guessed: {meters_per_unit:.4g} m per unit; set `skeleton.units` to be sure"

@@ -46,8 +46,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # stepping clip with no whole stride says so (`partial_stride`), and a file's unit that makes the
 # legs no body's is a `units` guess; 10: a guess records whether the value was stated (`stated`);
 # 11: the feet check the hip line (swapped labels, mirrored exports), more naming schemes find
-# the hips, stated forward / root / units the body contradicts are doubted, a moving fallback root.
-MEASUREMENT_REVISION = 11
+# the hips, stated forward / root / units the body contradicts are doubted, a moving fallback root;
+# 12: the knees (then the toes) are the legs' witness, net extent for roots, a child's unit noted.
+MEASUREMENT_REVISION = 12
 
 
 def cache_key(

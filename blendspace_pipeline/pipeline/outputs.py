@@ -48,6 +48,7 @@ import re
 import shutil
 import tempfile
 import time
+import zlib
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -191,6 +192,8 @@ def _output_inputs(name: str, file_name: str, document_digest: str, report: _Rep
     parts += [_library_version(library) for library in _WRITER_LIBRARIES.get(name, ())]
     if name == "html":
         parts.append(report.stamp)  # the report's one clock
+    if name == "png":
+        parts.append(f"zlib=={zlib.ZLIB_RUNTIME_VERSION}")  # deflates the PNG's rows (`png_file`)
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 

@@ -158,7 +158,7 @@ def _content_end(raw: bytes) -> int:
 
 def read_header(path: Path) -> BvhHeader:
     """Only the HIERARCHY and the MOTION header (what a writer needs from a template)."""
-    return _split_header(_text(path), path)[0]
+    return _split_header(bvh_text(path), path)[0]
 
 
 def _split_header(text: str, path: Path) -> tuple[BvhHeader, int]:
@@ -199,27 +199,31 @@ def _head_bounds(
     return None, end
 
 
-def _text(path: Path) -> str:
+def bvh_text(path: Path) -> str:
+    """The file's text as the reader reads it (see `_decoded` for its encodings)."""
     return _decoded(_raw(path))
 
 
-# Encodings a BVH's joint names come in besides UTF-8, tried in order only when the bytes are not
-# UTF-8: Shift-JIS (cp932; MikuMikuDance's `左足`, most Japanese tools) then Windows-1252
-# (accents), which takes any bytes. A name read as U+FFFD would match nothing the manifest names.
-_LEGACY_ENCODINGS = ("cp932", "cp1252")
-
-
 def _decoded(raw: bytes) -> str:
+    """The text of a BVH's bytes: UTF-8; else Windows-1252 when every character outside ASCII it
+    gives is a letter (`Épaule_G`, `Muñeca_I`); else Shift-JIS (cp932: MikuMikuDance's `左足`,
+    most Japanese tools), whose bytes read as Windows-1252 give punctuation and symbols (‰, ‘, ˜);
+    else Latin-1, which takes any bytes. A name read as U+FFFD would match nothing the manifest
+    names, and Shift-JIS tried first turned accented Latin names into kana."""
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         pass
-    for encoding in _LEGACY_ENCODINGS:
-        try:
-            return raw.decode(encoding)
-        except UnicodeDecodeError:
-            continue
-    return raw.decode("utf-8", errors="replace")
+    try:
+        western = raw.decode("cp1252")
+    except UnicodeDecodeError:
+        western = None
+    if western is not None and all(c.isascii() or c.isalpha() for c in western):
+        return western
+    try:
+        return raw.decode("cp932")
+    except UnicodeDecodeError:
+        return western if western is not None else raw.decode("latin-1")
 
 
 def _raw(path: Path) -> bytes:

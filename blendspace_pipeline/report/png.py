@@ -55,8 +55,9 @@ def write_png(doc: BlendSpaceDocument, path: Path) -> None:
         temporary.write_bytes(data)
 
 
-# The colour chunks libpng writes for sRGB pixels: sRGB (perceptual intent), and the gamma and
-# chromaticities older decoders use instead (PNG 1.2, 11.3.3.5: the values that match sRGB).
+# The colour chunks of sRGB pixels: sRGB (perceptual rendering intent, as for any image meant for
+# screens), and the gamma and chromaticities older decoders use instead (the PNG specification's
+# values that match sRGB).
 _SRGB_CHUNKS = (
     (b"sRGB", bytes([0])),
     (b"gAMA", struct.pack(">I", 45455)),
@@ -75,8 +76,10 @@ def png_file(pixels: np.ndarray) -> bytes:
     extra time went to copying into an image buffer and libpng's per-row calls). OIIO reads the
     file back to the same pixels (tested)."""
     height, width, channels = pixels.shape
-    if channels != 3 or pixels.dtype != np.uint8:
-        raise ValueError(f"expected 8-bit RGB pixels, got {channels} channels of {pixels.dtype}")
+    if channels != 3 or pixels.dtype != np.uint8 or not height or not width:
+        raise ValueError(
+            f"expected 8-bit RGB pixels, got {height}x{width} with {channels} channels of {pixels.dtype}"
+        )
     rows = np.empty((height, 1 + 3 * width), dtype=np.uint8)
     rows[:, 0] = 0  # filter type: none
     rows[:, 1:] = pixels.reshape(height, 3 * width)

@@ -42,7 +42,8 @@ class ClipInfoDoc(_Strict):
     range: list[float] | None = Field(
         default=None,
         description="The trimmed range measured, seconds: the frames `range:` (or range: auto) selected, "
-        "first to last.",
+        "first to last; also set when the file's first frame, a rest pose, was left out (`notes` says so). "
+        "Contacts and markers count from its start.",
     )
     range_auto: bool = Field(default=False, description="Whether range: auto chose the range.")
     guesses: list[str] = Field(

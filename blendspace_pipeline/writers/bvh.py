@@ -22,7 +22,7 @@ import numpy as np
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.quaternions import FloatArray
-from blendspace_pipeline.readers.bvh import BvhHeader, BvhJoint, read_header
+from blendspace_pipeline.readers.bvh import BvhHeader, BvhJoint, bvh_text, read_header
 from blendspace_pipeline.readers.provenance import Provenance, bvh_line
 
 _SIX = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
@@ -65,8 +65,9 @@ def _template(template: Path, clip: Clip) -> tuple[BvhHeader, str]:
     parents = tuple(j.parent for j in header.joints)
     if names != clip.skeleton.names or parents != clip.skeleton.parents:
         raise ValueError(f"clip {clip.name!r} does not have the joints of its BVH template {template}")
-    with template.open(encoding="utf-8", errors="replace", newline="\n") as stream:
-        lines = [line.rstrip() for line in itertools.islice(stream, header.motion_line - 1)]
+    # Decoded as the reader decodes it (a Shift-JIS file's names stay its names), written as UTF-8.
+    text = bvh_text(template)
+    lines = [line.rstrip() for line in itertools.islice(text.split("\n"), header.motion_line - 1)]
     return header, "\n".join(lines) + "\n"
 
 

@@ -35,7 +35,8 @@ _SIDE_PATTERNS = (
     re.compile(r"(?P<side>LEFT|RIGHT)"),
     # Single letters only as a separated token (thigh.L, L_Thigh, hand_r) or a camel prefix (LHand).
     re.compile(r"(?:^|(?<=[._\-\s:|]))(?P<side>[LRlr])(?=$|[._\-\s:|\d])"),
-    re.compile(r"^(?:[A-Za-z0-9]+_)?(?P<side>[LRlr])(?=[A-Z])"),  # DAZ's lThigh, Skeleton1_LThigh
+    re.compile(r"^(?:[a-z]+_)?(?P<side>[LR])(?=[A-Z])"),
+    re.compile(r"^(?:[A-Za-z0-9]+_)?(?P<side>[LRlr])(?=[A-Z][a-z])"),  # DAZ's lThigh, Skeleton1_LThigh
     re.compile(r"(?P<side>左|右)"),  # MikuMikuDance
 )
 _OPPOSITE = {
