@@ -26,7 +26,12 @@ class DetectionGuess(Rule):
             if sample.generated:
                 continue
             for guess in sample.guesses:
-                if guess.stated:  # a value the file or the manifest states: used, and doubted aloud
+                if guess.stated and not guess.override.startswith("skeleton:"):
+                    # Nothing in the manifest can right it (root motion in another unit than the
+                    # bones, an axis no manifest states): the file must change.
+                    message = f"{guess.what} {guess.value[:-1]}, doubted: {guess.evidence})"
+                    hint = f"{guess.override}; if it is right, add `ignore: [{{rule: detection-guess, reason: ...}}]`"
+                elif guess.stated:  # a value the file or the manifest states: used, and doubted aloud
                     message = f"{guess.what} {guess.value[:-1]}, doubted: {guess.evidence})"
                     hint = (
                         f"if that reading is right, set `{guess.override}` on the clip's entry (or the "

@@ -380,3 +380,110 @@ def test_a_joint_name_used_twice_is_noted() -> None:
     [note] = [n for n in measure(doubled, RigSettings()).notes if "used twice" in n]
     assert "RightHand" in note
     assert not [n for n in measure(clip, RigSettings()).notes if "used twice" in n]
+
+
+def test_an_up_axis_the_file_states_and_the_body_contradicts_is_doubted(tmp_path: Path) -> None:
+    """A GLB exported from Blender with "+Y Up" off, an FBX without its axis conversion: the file
+    states Y while the body stands along Z, and every walk read 0 m/s without a word (a stated unit
+    was already checked this way, the up axis not). Still used, now doubted; the manifest's
+    `skeleton: {up: z}` settles it. A USD `upAxis` that is no USD up axis (Blender writes "X")
+    is not trusted: the body decides."""
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    spec = GAITS[0]
+    lying = tmp_path / "walk.usda"
+    write_usd_clip(generate(spec, up="z"), lying, meters_per_unit=1.0, up_axis="y")
+    [clip] = read_clips(lying)
+    assert clip.up_axis == "y"
+    measured = measure(clip, RigSettings())
+    [guess] = [g for g in measured.guesses if g.what == "up axis"]
+    assert guess.stated and guess.value == "Y (the file's)" and "the body reads Z up" in guess.evidence
+    assert guess.override == "skeleton: {up: z}"
+    assert not [g for g in measured.guesses if g.what == "facing"]  # the legs are not read on a wrong ground
+    settled = measure(clip, RigSettings(up="z"))
+    assert not settled.guesses
+    _close(settled, _truth(spec))
+    x_up = tmp_path / "x.usda"
+    x_up.write_text(
+        lying.read_text(encoding="utf-8").replace('upAxis = "Y"', 'upAxis = "X"'), encoding="utf-8"
+    )
+    [odd] = read_clips(x_up)
+    assert odd.up_axis is None and any("upAxis 'X' is not a USD up axis" in n for n in odd.notes)
+    _close(measure(odd, RigSettings()), _truth(spec))
+
+
+def test_a_clip_listing_its_joints_breadth_first_writes_a_faithful_bvh(tmp_path: Path) -> None:
+    """An FBX lists joints breadth first; BVH lists them depth first. The writer wrote the
+    hierarchy depth first but the motion columns in the clip's order, moving joints by up to
+    1.6 m when read back."""
+    from blendspace_pipeline.motion.clip import forward_kinematics
+
+    clip = generate(GAITS[0])
+    parents = clip.skeleton.parents
+    order, queue = [], [j for j, p in enumerate(parents) if p < 0]
+    while queue:
+        joint = queue.pop(0)
+        order.append(joint)
+        queue += [j for j, p in enumerate(parents) if p == joint]
+    assert order != list(range(len(parents)))  # breadth first differs from the generator's order
+    remap = {old: new for new, old in enumerate(order)}
+    skeleton = replace(
+        clip.skeleton,
+        names=tuple(clip.skeleton.names[i] for i in order),
+        parents=tuple(-1 if parents[i] < 0 else remap[parents[i]] for i in order),
+        rest_translations=clip.skeleton.rest_translations[order],
+        rest_rotations=clip.skeleton.rest_rotations[order],
+    )
+    wide = replace(
+        clip, skeleton=skeleton, rotations=clip.rotations[:, order], translations=clip.translations[:, order]
+    )
+    path = tmp_path / "wide.bvh"
+    write_bvh_clip(wide, path)
+    [back] = read_clips(path)
+    original = forward_kinematics(clip)[1]
+    read = forward_kinematics(back)[1]
+    for name in clip.skeleton.names:
+        np.testing.assert_allclose(
+            read[:, back.skeleton.names.index(name)], original[:, clip.skeleton.names.index(name)], atol=1e-4
+        )
+
+
+def test_root_motion_faster_than_any_body_is_doubted() -> None:
+    """Blender's "apply transform" on a Mixamo-style armature leaves the location keys in
+    centimetres under bones in metres: a walk read 140 m/s on 0.82 m legs, and only
+    `outside-axis-range` said anything. Doubted now; a real sprint is not."""
+    clip = generate(GAITS[0])
+    translations = clip.translations.copy()
+    translations[:, 0] *= 100.0  # the hips' (root's) keys a hundred times the bones' unit
+    measured = measure(replace(clip, translations=translations), RigSettings(units="m"))
+    assert measured.features["speed"] == pytest.approx(140.0, rel=0.01)
+    [guess] = [g for g in measured.guesses if g.what == "root"]
+    assert guess.stated and "no body travels 140 m/s on legs 0.82 m long" in guess.evidence
+    sprint = measure(generate(GaitSpec("sprint", speed=10.0, duration=1.0, stride_length=4.5)), RigSettings())
+    assert not [g for g in sprint.guesses if g.what == "root"]
+
+
+def test_a_single_frame_pose_among_a_files_animations_is_left_out_and_said(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Blender exports a one-key "TPose" action beside the takes (a GLB of several animations):
+    measuring it failed the whole build (exit 2, "give the clip more frames"), and no manifest
+    entry can leave one animation of a file out. It is left out now, and the file's other
+    animations say so; alone in its file, its error stands."""
+    from blendspace_pipeline.errors import InputError
+    from blendspace_pipeline.pipeline import measure_stage
+
+    walk = replace(generate(GAITS[0]), name="take/walk")
+    pose = replace(walk.trimmed(0, 1), name="take/TPose")
+    path = tmp_path / "take.glb"
+    path.write_bytes(b"stands in for the file: the reader is replaced below")
+    monkeypatch.setattr(measure_stage, "read_clips", lambda *_a, **_k: [pose, walk])
+    measured = measure_stage.measure_file(path, RigSettings(), None)
+    assert [name for name, _ in measured] == ["take/walk"]
+    [(_, found)] = measured
+    assert "animation 'take/TPose' of this file is a single frame (a pose): left out" in found.notes
+    _close(found, _truth(GAITS[0]))
+    monkeypatch.setattr(measure_stage, "read_clips", lambda *_a, **_k: [pose])
+    path.write_bytes(b"another file, so not from the cache")
+    with pytest.raises(InputError, match="1 frame"):
+        measure_stage.measure_file(path, RigSettings(), None)

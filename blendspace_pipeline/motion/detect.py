@@ -288,7 +288,9 @@ def _chain_length(clip: Clip, world_pos: FloatArray, top: int, bottom: int) -> f
     return stats.median(total)
 
 
-def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple[str, float, str] | None:
+def detect_up(
+    clip: Clip, world_pos: FloatArray, settings: RigSettings, *, legs_only: bool = False
+) -> tuple[str, float, str] | None:
     """(signed up axis, confidence 0..1, evidence) from the body, or None without a body.
 
     The body's up is the feet-to-hips direction plus the hips-to-head direction, each a unit
@@ -302,7 +304,7 @@ def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple
     hip_mid = 0.5 * (world_pos[:, body.hips[0]] + world_pos[:, body.hips[1]])
     feet_mid = 0.5 * (world_pos[:, body.feet[0]] + world_pos[:, body.feet[1]])
     parts = [hip_mid - feet_mid]
-    if body.head is not None:
+    if body.head is not None and not legs_only:
         parts.append(world_pos[:, body.head] - hip_mid)
     total = np.zeros(3)
     for part in parts:
@@ -319,7 +321,7 @@ def detect_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> tuple
     angle = float(np.degrees(np.arccos(min(1.0, confidence))))
     names = clip.skeleton.names
     via = f"feet ({names[body.feet[0]]}) to hips" + (
-        f" to {names[body.head]}" if body.head is not None else ""
+        f" to {names[body.head]}" if body.head is not None and not legs_only else ""
     )
     return name, confidence, f"body up ({via}) is {angle:.0f} deg from {name.upper()}"
 
@@ -335,9 +337,13 @@ def resolve_up_guess(
 ) -> tuple[str, str | None, DetectionGuess | None]:
     if settings.up != "auto":
         confirmed = clip.up_axis == settings.up  # the file says so too (USD `upAxis`)
-        return settings.up, None, None if confirmed else _doubt_stated_up(clip, world_pos, settings)
-    if clip.up_axis is not None:
-        return clip.up_axis, None, None
+        return (
+            settings.up,
+            None,
+            None if confirmed else _doubt_stated_up(clip, world_pos, settings, settings.up),
+        )
+    if clip.up_axis is not None:  # the file says (USD `upAxis`, glTF +Y, FBX axis settings)
+        return clip.up_axis, None, _doubt_stated_up(clip, world_pos, settings, clip.up_axis, "file")
     found = detect_up(clip, world_pos, settings)
     if found is not None:
         up, confidence, evidence = found
@@ -358,21 +364,28 @@ def resolve_up_guess(
     )
 
 
-def _doubt_stated_up(clip: Clip, world_pos: FloatArray, settings: RigSettings) -> DetectionGuess | None:
-    """A guess when the manifest's `skeleton.up` contradicts a body that stands clearly along
-    another axis (a top-level `up: z` copied onto a Y-up take read a straight walk as 59.7 deg
-    sideways): the setting is still used, and the finding says what the body reads."""
-    found = detect_up(clip, world_pos, replace(settings, up="auto"))
+def _doubt_stated_up(
+    clip: Clip, world_pos: FloatArray, settings: RigSettings, stated: str, whose: str = "manifest"
+) -> DetectionGuess | None:
+    """A guess when the up axis the manifest (`skeleton.up`) or the file states contradicts a
+    body that stands clearly along another axis (a top-level `up: z` copied onto a Y-up take read
+    a straight walk as 59.7 deg sideways; a GLB exported from Blender with "+Y Up" off read every
+    walk at 0 m/s): the stated axis is still used, and the finding says what the body reads."""
+    # A file's axis is doubted on the legs alone (feet below hips): a quadruped's head is ahead of
+    # its hips, not above them (the Khronos Fox read Z up with its head counted).
+    found = detect_up(clip, world_pos, replace(settings, up="auto"), legs_only=whose == "file")
     if found is None:
         return None
     up, confidence, evidence = found
-    if confidence < _UP_CONFIDENT_COS or up == settings.up:
+    if confidence < _UP_CONFIDENT_COS or up == stated:
         return None
     return DetectionGuess(
         "up axis",
-        f"{settings.up.upper()} (the manifest's)",
+        f"{stated.upper()} (the {whose}'s)",
         f"the body reads {up.upper()} up: {evidence}",
-        f"skeleton: {{up: {up}}}",
+        f"skeleton: {{up: {up}}}"
+        if up in ("y", "z")
+        else f"re-export it Y or Z up (the body stands along {up.upper()})",
         stated=True,
     )
 
@@ -502,14 +515,26 @@ def _doubt_stated_hips(clip: Clip, hips: tuple[int, int]) -> DetectionGuess | No
 
 
 def resolve_facing(
-    clip: Clip, settings: RigSettings, up_axis: str, posed: tuple[FloatArray, FloatArray]
+    clip: Clip,
+    settings: RigSettings,
+    up_axis: str,
+    posed: tuple[FloatArray, FloatArray],
+    *,
+    check_legs: bool = True,
 ) -> Facing:
     """Which way the character faces, per frame. ``posed``: the clip's forward kinematics
     (rotations, positions), against which the choice is checked: the feet point forward on every
     rig, so a hip line whose left and right are swapped (in the names, or by a mirrored export)
-    is turned round, and a stated `forward:` that the body contradicts is doubted."""
+    is turned round, and a stated `forward:` that the body contradicts is doubted.
+    ``check_legs=False``: not checked, when the up axis is itself in doubt (`measure` knows): the
+    legs read along a wrong ground plane say nothing about left and right."""
     up = up_vector(up_axis)
     hips = hip_pair(clip, settings) if settings.forward == "auto" else None
+    if hips is not None and not check_legs:
+        left, right = hips
+        return Facing(
+            label="hip line", vectors=lambda _rot, pos: quat.cross(pos[:, left] - pos[:, right], up)
+        )
     if hips is not None:
         return _hip_line_facing(clip, settings, up, posed[1], hips)
     if settings.root != "auto":
@@ -930,6 +955,35 @@ def _doubt_stated_unit(
         f"{unit:.4g} m per unit (the {whose}'s)",
         f"the {whose}'s unit makes the legs {leg:.3g} m long{reads}",
         override,
+        stated=True,
+    )
+
+
+# Faster than any body runs (sprinters peak near 12 m/s): root motion at this speed on legs of an
+# adult's length is in another unit than the skeleton (a DCC scale applied to one of them only).
+_FASTEST_BODY = 15.0
+
+
+def root_speed_doubt(
+    clip: Clip, world_pos: FloatArray, settings: RigSettings, meters_per_unit: float, speed: float
+) -> DetectionGuess | None:
+    """A doubt when the root travels faster than any body on legs of an adult's length: Blender's
+    "apply transform" on a Mixamo-style armature left its location keys in centimetres under
+    bones in metres, and a walk read 140 m/s with 0.82 m legs, with no word but `outside-axis-range`."""
+    if abs(speed) <= _FASTEST_BODY:
+        return None
+    body = body_joints(clip, settings)
+    if body is None:
+        return None
+    leg = _leg_length(clip, world_pos, body) * meters_per_unit
+    if not _PLAUSIBLE_LEG[0] <= leg <= _PLAUSIBLE_LEG[1]:
+        return None  # the whole clip is off: the unit's own doubt says so
+    return DetectionGuess(
+        "root",
+        f"{abs(speed):.3g} m/s of root motion (the file's)",
+        f"no body travels {abs(speed):.3g} m/s on legs {leg:.2f} m long: the root motion is in another unit "
+        "than the skeleton (a scale applied to one of them only)",
+        "re-export with the scale applied to the animation too",
         stated=True,
     )
 

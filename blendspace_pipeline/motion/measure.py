@@ -32,6 +32,7 @@ from blendspace_pipeline.motion.detect import (
     resolve_root,
     resolve_units_guess,
     resolve_up_guess,
+    root_speed_doubt,
     stated_unit_note,
     up_vector,
 )
@@ -151,7 +152,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     # The up axis, like the unit, belongs to the file: read from the body over every frame.
     up_axis, up_note, up_guess = resolve_up_guess(clip, whole_pos, settings)
     root = resolve_root(clip, settings, whole_pos)
-    facing = resolve_facing(clip, settings, up_axis, (whole_rot, whole_pos))
+    up_doubted = up_guess is not None and up_guess.stated
+    facing = resolve_facing(clip, settings, up_axis, (whole_rot, whole_pos), check_legs=not up_doubted)
     # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
     # `range:` entry of one take gets the same unit (and so comparable speeds).
     meters_per_unit, units_source, units_guess = resolve_units_guess(clip, whole_pos, settings, up_axis, root)
@@ -219,6 +221,9 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     # The hip line sways with the pelvis once a stride (up to +-25 deg on swaggering gaits).
     steady = sway_free(heading, used, settings, posed, cycle, positions, found=found)
     features = _features(positions, steady, used.fps)
+    too_fast = root_speed_doubt(clip, whole_pos, settings, meters_per_unit, features["speed"])
+    if too_fast is not None:
+        guesses.append(too_fast)
     in_place = abs(features["speed"]) < IN_PLACE_SPEED and abs(features["turn_rate"]) < IN_PLACE_TURN_RATE
     # Stepping, but no whole stride to average the sway over (a short clip or `range:`): the
     # turn and direction keep the pelvis yaw, several deg/s on a fraction of a stride.

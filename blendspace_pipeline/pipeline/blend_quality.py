@@ -40,6 +40,7 @@ from blendspace_pipeline.motion.blend_model import (
 )
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops.blend import without_rest_frame
+from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.contacts import FootContacts
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import trim
@@ -139,7 +140,10 @@ class PreparedSamples:
             return None
         clip = without_rest_frame(clip, self.settings)
         contacts = FootContacts.from_json(m.contacts, clip.duration)
-        return prepare(clip, self.settings, m.meters_per_unit, contacts)
+        try:
+            return prepare(clip, self.settings, m.meters_per_unit, contacts)
+        except IncompatibleClips:  # an X-up take: measured, but not played (as an unreadable one)
+            return None
 
 
 def _play_point(

@@ -47,8 +47,10 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # legs no body's is a `units` guess; 10: a guess records whether the value was stated (`stated`);
 # 11: the feet check the hip line (swapped labels, mirrored exports), more naming schemes find
 # the hips, stated forward / root / units the body contradicts are doubted, a moving fallback root;
-# 12: the knees (then the toes) are the legs' witness, net extent for roots, a child's unit noted.
-MEASUREMENT_REVISION = 12
+# 12: the knees (then the toes) are the legs' witness, net extent for roots, a child's unit noted;
+# 13: a file's up axis the body contradicts is doubted, root motion faster than any body is doubted,
+# a single-frame pose among a file's animations is left out.
+MEASUREMENT_REVISION = 13
 
 
 def cache_key(

@@ -90,9 +90,18 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
         cached = lookup(library, digest, path, settings)
     if cached is not None:
         return digest, key, cached
-    measured = [
-        (clip.name, measure(clip, settings, time_range)) for clip in read_clips(path, project=project)
-    ]
+    clips = read_clips(path, project=project)
+    # A file of several animations may hold a pose among them (Blender's one-key "TPose" action):
+    # no motion to measure, and no entry can leave one animation of a file out, so it is left
+    # out here and said on the others. Alone in its file it is the clip, and its error stands.
+    poses = [clip.name for clip in clips if clip.frame_count < 2] if len(clips) > 1 else []
+    if len(poses) == len(clips):
+        poses = []
+    measured = [(clip.name, measure(clip, settings, time_range)) for clip in clips if clip.name not in poses]
+    for _name, measurement in measured:
+        measurement.notes += [
+            f"animation {pose!r} of this file is a single frame (a pose): left out" for pose in poses
+        ]
     cache.store(key, measured)
     return digest, key, measured
 

@@ -474,7 +474,11 @@ def _stage_units(stage: Usd.Stage, notes: list[str]) -> tuple[float | None, UpAx
     else:
         notes.append("metersPerUnit is not authored (USD would assume centimetres): units are detected")
     if stage.HasAuthoredMetadata(UsdGeom.Tokens.upAxis):
-        up_axis = "z" if UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z else "y"
+        stated = str(stage.GetMetadata(UsdGeom.Tokens.upAxis))
+        if stated in ("Y", "Z"):
+            up_axis = "z" if stated == "Z" else "y"
+        else:  # Blender writes "X" for a scene whose up is X: no USD up axis, so not trusted
+            notes.append(f"upAxis {stated!r} is not a USD up axis (Y or Z): the up axis is detected")
     else:
         notes.append("upAxis is not authored: the up axis is detected")
     return meters_per_unit, up_axis

@@ -148,9 +148,26 @@ def _hierarchy(header: BvhHeader) -> str:
     return "\n".join(out) + "\n"
 
 
+def _file_order(header: BvhHeader) -> list[int]:
+    """The joints in the order the HIERARCHY lists them, depth first (`_hierarchy`): the order of
+    the MOTION columns too. A clip read from FBX lists its joints breadth first; its columns in
+    that order scrambled the motion of every joint after the first branch."""
+    children: dict[int, list[int]] = {}
+    for index, joint in enumerate(header.joints):
+        children.setdefault(joint.parent, []).append(index)
+    order: list[int] = []
+    stack = list(reversed(children.get(-1, [])))
+    while stack:
+        index = stack.pop()
+        order.append(index)
+        stack.extend(reversed(children.get(index, [])))
+    return order
+
+
 def _motion(clip: Clip, header: BvhHeader) -> str:
     columns = []
-    for index, joint in enumerate(header.joints):
+    for index in _file_order(header):
+        joint = header.joints[index]
         order = "".join(c[0].upper() for c in joint.channels if c.lower().endswith("rotation"))
         angles = _angles(clip, index, joint.name, order)
         rotation_column = 0
