@@ -202,6 +202,25 @@ def test_a_stated_root_that_stays_put_is_doubted_but_not_on_an_in_place_take() -
     assert not [g for g in measure(in_place, RigSettings(root="Root")).guesses if g.what == "root"]
 
 
+def _only_joints(clip: Clip, joints: list[int]) -> Clip:
+    """``clip`` with only ``joints`` (parents before children), in that order."""
+    parents = clip.skeleton.parents
+    remap = {old: new for new, old in enumerate(joints)}
+    skeleton = replace(
+        clip.skeleton,
+        names=tuple(clip.skeleton.names[i] for i in joints),
+        parents=tuple(-1 if parents[i] < 0 else remap[parents[i]] for i in joints),
+        rest_translations=clip.skeleton.rest_translations[joints],
+        rest_rotations=clip.skeleton.rest_rotations[joints],
+    )
+    return replace(
+        clip,
+        skeleton=skeleton,
+        rotations=clip.rotations[:, joints],
+        translations=clip.translations[:, joints],
+    )
+
+
 def _posed_legs(clip: Clip, knee: float, ankle: float, hip: float = 0.0) -> Clip:
     """``clip`` with both legs held in one pose (degrees: hip flexion, knee bend, ankle plantar
     flexion; a kneeling pose is 0, 90, 90: thighs down, shins back along the floor, insteps down,
@@ -245,22 +264,7 @@ def test_straight_legs_are_read_by_the_toes_and_a_rig_without_toes_by_the_knees(
     assert "toes point" in measured.guesses[0].evidence
     clip = generate(spec)
     keep = [i for i, n in enumerate(clip.skeleton.names) if "Toe" not in n]
-    remap = {old: new for new, old in enumerate(keep)}
-    skeleton = replace(
-        clip.skeleton,
-        names=tuple(clip.skeleton.names[i] for i in keep),
-        parents=tuple(-1 if clip.skeleton.parents[i] < 0 else remap[clip.skeleton.parents[i]] for i in keep),
-        rest_translations=clip.skeleton.rest_translations[keep],
-        rest_rotations=clip.skeleton.rest_rotations[keep],
-    )
-    toeless = sides_swapped(
-        replace(
-            clip,
-            skeleton=skeleton,
-            rotations=clip.rotations[:, keep],
-            translations=clip.translations[:, keep],
-        )
-    )
+    toeless = sides_swapped(_only_joints(clip, keep))
     read = measure(toeless, RigSettings())
     assert read.facing.startswith("hip line, reversed") and "knees point" in read.guesses[0].evidence
     _close(read, _truth(spec))
@@ -426,17 +430,7 @@ def test_a_clip_listing_its_joints_breadth_first_writes_a_faithful_bvh(tmp_path:
         order.append(joint)
         queue += [j for j, p in enumerate(parents) if p == joint]
     assert order != list(range(len(parents)))  # breadth first differs from the generator's order
-    remap = {old: new for new, old in enumerate(order)}
-    skeleton = replace(
-        clip.skeleton,
-        names=tuple(clip.skeleton.names[i] for i in order),
-        parents=tuple(-1 if parents[i] < 0 else remap[parents[i]] for i in order),
-        rest_translations=clip.skeleton.rest_translations[order],
-        rest_rotations=clip.skeleton.rest_rotations[order],
-    )
-    wide = replace(
-        clip, skeleton=skeleton, rotations=clip.rotations[:, order], translations=clip.translations[:, order]
-    )
+    wide = _only_joints(clip, order)
     path = tmp_path / "wide.bvh"
     write_bvh_clip(wide, path)
     [back] = read_clips(path)
