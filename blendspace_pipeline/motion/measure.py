@@ -206,6 +206,9 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
             f"length unit guessed: {meters_per_unit:.4g} m per unit; set `skeleton.units` to be sure"
         )
     positions = root.positions(world_pos) @ ground.T * meters_per_unit  # (F, 2) metres
+    jump = _root_jump(positions, first)
+    if jump is not None:
+        guesses.append(jump)
     facing_vectors = facing.vectors(world_rot, world_pos)
     forward = facing_vectors @ ground.T  # (F, 2)
     heading = np.unwrap(np.arctan2(forward[:, 1], forward[:, 0]))
@@ -261,6 +264,33 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         range_used=range_used if (explicit is not None or auto or first > 0) else None,
         skeleton_key=skeleton_key(clip),
         partial_stride=partial_stride,
+    )
+
+
+# A root step this many times the take's typical step, and at least this far (metres), in one
+# frame is a jump no body makes: the take starts over (an NLA strip repeated, takes joined) or a
+# marker swapped. Speed and turn then average over the jump back.
+_JUMP_STEPS = 8.0
+_JUMP_METRES = 0.25
+
+
+def _root_jump(positions: FloatArray, first: int) -> DetectionGuess | None:
+    """A doubt when the root's ground track jumps in one frame: an NLA strip with Repeat 2 in
+    Blender snaps the root back to the start, and a walk read half its speed without a word."""
+    if len(positions) < 3:
+        return None
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
+    limit = max(_JUMP_METRES, _JUMP_STEPS * float(np.median(steps)))
+    at = int(np.argmax(steps))
+    if steps[at] <= limit:
+        return None
+    return DetectionGuess(
+        "root",
+        f"jumps {steps[at]:.2f} m in one frame (the file's)",
+        f"between frames {first + at} and {first + at + 1} (the take starts over, or takes were joined): "
+        "speed and turn average over the jump",
+        "cut the take at the jump with `range:`, or export one cycle",
+        stated=True,
     )
 
 
