@@ -530,13 +530,8 @@ def resolve_facing(
     legs read along a wrong ground plane say nothing about left and right."""
     up = up_vector(up_axis)
     hips = hip_pair(clip, settings) if settings.forward == "auto" else None
-    if hips is not None and not check_legs:
-        left, right = hips
-        return Facing(
-            label="hip line", vectors=lambda _rot, pos: quat.cross(pos[:, left] - pos[:, right], up)
-        )
     if hips is not None:
-        return _hip_line_facing(clip, settings, up, posed[1], hips)
+        return _hip_line_facing(clip, settings, up, posed[1], hips, check_legs)
     if settings.root != "auto":
         joint = _joint(clip, settings.root, "root")
     elif settings.forward != "auto":  # "the root joint's forward axis": the same joint in every take
@@ -631,13 +626,19 @@ def legs_say(
 
 
 def _hip_line_facing(
-    clip: Clip, settings: RigSettings, up: FloatArray, world_pos: FloatArray, hips: tuple[int, int]
+    clip: Clip,
+    settings: RigSettings,
+    up: FloatArray,
+    world_pos: FloatArray,
+    hips: tuple[int, int],
+    check_legs: bool = True,
 ) -> Facing:
     left, right = hips
     names = clip.skeleton.names
     stated = settings.left_hip != "auto" or settings.right_hip != "auto"
     sampled = _sampled(world_pos)
-    legs = legs_say(clip, settings, sampled, up, quat.cross(sampled[:, left] - sampled[:, right], up))
+    hip_line = quat.cross(sampled[:, left] - sampled[:, right], up)
+    legs = legs_say(clip, settings, sampled, up, hip_line) if check_legs else LegsSay(None, None)
     swapped = f"skeleton: {{left_hip: {names[right]}, right_hip: {names[left]}}}"
     if legs.reversed() and not stated:
         # The legs say the hip line faces backwards: the joint named left is on the character's
@@ -661,6 +662,8 @@ def _hip_line_facing(
     def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
         return quat.cross(pos[:, left] - pos[:, right], up)
 
+    if not check_legs:  # the up axis is in doubt: nothing here is read, nothing doubted
+        return Facing(label="hip line", vectors=from_hip_line)
     guess = None
     if stated and legs.contradicted():
         guess = DetectionGuess(
@@ -695,20 +698,19 @@ def _doubt_stated_forward(
     if body is None:
         return None
     forward, via = body
-    stated = quat.rotate(world_rot[:, joint], np.broadcast_to(_AXIS_VECTORS[axis_name], (len(world_rot), 3)))
-    agree = _agreement(_along_ground(stated, up), forward)
+    # How each of the joint's axes agrees with the body (the stated one among them).
+    scores = {
+        candidate: _agreement(_along_ground(_joint_axis(joint, candidate)(world_rot, world_pos), up), forward)
+        for candidate in _AXIS_VECTORS
+    }
+    agree = scores[axis_name]
     if agree is None or agree >= _LEGS_AGREE:
         return None
-    scores: dict[str, float] = {}
-    for candidate, vector in _AXIS_VECTORS.items():
-        along = quat.rotate(world_rot[:, joint], np.broadcast_to(vector, (len(world_rot), 3)))
-        score = _agreement(_along_ground(along, up), forward)
-        scores[candidate] = -2.0 if score is None else score
-    best = max(scores, key=lambda candidate: scores[candidate])
+    best = max(scores, key=lambda candidate: scores[candidate] or -2.0)
     name = clip.skeleton.names[joint]
     override = (
         f"skeleton: {{forward: {best}}}"
-        if scores[best] > 1.0 - _LEGS_AGREE
+        if (scores[best] or -2.0) > 1.0 - _LEGS_AGREE
         else "drop skeleton.forward (the hip line)"
     )
     return DetectionGuess(

@@ -11,6 +11,7 @@ in place. Units and the up axis come from the file, the manifest, or detection (
 from __future__ import annotations
 
 import hashlib
+from collections import Counter
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Literal
@@ -295,13 +296,7 @@ def _root_jump(positions: FloatArray, first: int) -> DetectionGuess | None:
 
 
 def _repeated_names(names: tuple[str, ...] | list[str]) -> list[str]:
-    seen: set[str] = set()
-    repeated: dict[str, None] = {}
-    for name in names:
-        if name in seen:
-            repeated[name] = None
-        seen.add(name)
-    return list(repeated)
+    return [name for name, count in Counter(names).items() if count > 1]
 
 
 # The feet pass each other by this fraction of the leg's length at least: a step, not a shuffle.
