@@ -23,7 +23,7 @@ import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.clip_ops.blend import blend_clips, without_rest_frame
+from blendspace_pipeline.motion.clip_ops.blend import blend_clips, measured_part
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts, contact_joints
 from blendspace_pipeline.motion.clip_ops.root_motion import decompose
 from blendspace_pipeline.motion.contacts import foot_sliding
@@ -92,7 +92,7 @@ def main() -> int:
         print(f"{DATA} is missing: the benchmark needs the shared CMU takes")
         return 1
     takes = {name: read_clips(DATA / name)[0] for name in {f for f, _ in RANGES.values()}}
-    sources = {key: without_rest_frame(trim(takes[f], r), SETTINGS) for key, (f, r) in RANGES.items()}
+    sources = {key: measured_part(trim(takes[f], r), SETTINGS) for key, (f, r) in RANGES.items()}
     mpu, up = units(takes["131_01.bvh"])
     print(f"unit {mpu:.4g} m per unit, up {up}")
     print(

@@ -22,6 +22,7 @@ from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.notes import HELD_MARK
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.writers.bvh import write_bvh_clip
@@ -78,10 +79,12 @@ for job in json.loads(sys.argv[1]):
         bpy.ops.wm.usd_import(filepath=source)
     if job["kind"] == "fbx":
         # The take spans the clip, not the scene's default 250 frames (which would hold the last pose).
+        # With "scene_end", the scene ends there instead, as an artist's scene often does.
         actions = [o.animation_data.action for o in bpy.data.objects if o.animation_data and o.animation_data.action]
         if actions:
             first, last = actions[0].frame_range
-            bpy.context.scene.frame_start, bpy.context.scene.frame_end = int(round(first)), int(round(last))
+            bpy.context.scene.frame_start = int(round(first))
+            bpy.context.scene.frame_end = job.get("scene_end", int(round(last)))
         # Every action as its own take, sampled on every frame (no curve simplification).
         bpy.ops.export_scene.fbx(filepath=job["out"], bake_anim=True, bake_anim_simplify_factor=0.0,
                                  add_leaf_bones=False, bake_anim_use_all_actions=job.get("all_actions", False),
@@ -140,6 +143,26 @@ def test_blender_fbx_of_a_procedural_walk_measures_its_known_speed(
     manifest = tmp_path / "m.yaml"
     manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: walk.fbx\n", encoding="utf-8")
     assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
+
+
+def test_blender_fbx_of_a_scene_longer_than_the_walk_measures_the_walk(
+    tmp_path: Path, blender: None, fbx: None
+) -> None:
+    """A 2 s walk exported from a 250-frame scene: Blender bakes the last pose for the 6 s after
+    it. The held keys are left out (the walk read 0.27 m/s, and `range: auto` 1.34 m/s on its
+    last second), and the measured range is the walk's."""
+    spec = GaitSpec("walk", speed=1.4, duration=2.0, fps=24.0)
+    bvh = tmp_path / "walk.bvh"
+    write_bvh_clip(generate(spec), bvh)
+    out = tmp_path / "walk.fbx"
+    _run_blender([{"kind": "fbx", "source": str(bvh), "out": str(out), "scene_end": 250}])
+    (clip,) = read_clips(out)
+    assert clip.frame_count >= 240  # the scene's frames, the hold included
+    for time_range in (None, "auto"):
+        measured = measure(clip, RigSettings(), time_range)
+        assert measured.features["speed"] == pytest.approx(1.4, abs=0.02), time_range
+        assert measured.range_used is not None and measured.range_used[1] <= 2.0 + 1.5 / 24
+    assert any(note.startswith(HELD_MARK) for note in measure(clip, RigSettings()).notes)
 
 
 @pytest.mark.parametrize("take", ["131_01", "131_02"])

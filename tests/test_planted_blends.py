@@ -9,7 +9,7 @@ from conftest import shared_data
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.clip_ops.blend import blend_clips, without_rest_frame
+from blendspace_pipeline.motion.clip_ops.blend import blend_clips, measured_part
 from blendspace_pipeline.motion.clip_ops.feet import clip_contacts, contact_joints
 from blendspace_pipeline.motion.clip_ops.root_motion import decompose
 from blendspace_pipeline.motion.contacts import foot_sliding
@@ -119,7 +119,7 @@ def test_cmu_blends_meet_the_goals(
     """The issue's goals on real mocap: sliding <= 1.1x the weighted mean of the sources, loop
     seam <= 1 cm, bone lengths exact."""
     sources = [
-        without_rest_frame(trim(read_clips(shared_data("cmu", name))[0], span), SETTINGS)
+        measured_part(trim(read_clips(shared_data("cmu", name))[0], span), SETTINGS)
         for name, span in (first, second)
     ]
     unit, up = _unit(read_clips(shared_data("cmu", "131_01.bvh"))[0])

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import ModuleType
 
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.motion.notes import REST_FRAME_NOTE
+from blendspace_pipeline.motion.notes import HELD_MARK, REST_FRAME_NOTE
 from blendspace_pipeline.report.atomic import atomic_path
 from blendspace_pipeline.space.document import AxisDoc, BlendSpaceDocument, SampleDoc
 from blendspace_pipeline.space.layers_doc import parse_layers
@@ -75,6 +75,7 @@ class EngineSample:
     # first frame, a rest pose, was left out (``rest_frame``).
     trim: tuple[float, float] | None = None
     rest_frame: bool = False
+    held_keys: bool = False  # frames repeating the pose at either end were left out
 
 
 @dataclass(frozen=True)
@@ -185,6 +186,7 @@ def to_engine(doc: BlendSpaceDocument, convention: Convention, source: str = "")
             markers=_markers(s),
             trim=_trim(s),
             rest_frame=s.clip is not None and REST_FRAME_NOTE in s.clip.notes,
+            held_keys=s.clip is not None and any(HELD_MARK in note for note in s.clip.notes),
         )
         for s in doc.samples
     ]
@@ -230,7 +232,15 @@ def common_notes(space: EngineSpace, convention: Convention, layer_advice: str) 
             # The exports name clips, and engines play a clip file whole: a take measured over a
             # `range:` (start, walk, stop) would blend its start and stop too, and a rest pose
             # left in the file pops at the start of every loop.
-            why = " (its first frame, a rest pose, left out)" if sample.rest_frame else ""
+            left_out = [
+                what
+                for what, yes in (
+                    ("its first frame, a rest pose, left out", sample.rest_frame),
+                    ("held keys at its ends left out", sample.held_keys),
+                )
+                if yes
+            ]
+            why = f" ({'; '.join(left_out)})" if left_out else ""
             notes.append(
                 f"{sample.name} was measured on {sample.trim[0]:.2f}-{sample.trim[1]:.2f} s of "
                 f"{Path(sample.source).name}{why}: {convention.engine} plays the whole file unless that span "

@@ -18,6 +18,7 @@ from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.joint_names import find_hips, split_side
+from blendspace_pipeline.motion.notes import REST_FRAME_NOTE, STILL_NOTE, held_note
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 UNIT_METERS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
@@ -1105,3 +1106,86 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
         axis=1
     )
     return bool(residual[0] > 5.0 * stats.percentile(residual[1:], 99))
+
+
+# A pose counts as held when no joint moves more than this fraction of the body's extent (0.02 mm
+# on an adult): the same key evaluated again (a DCC's constant extrapolation past the last key,
+# a scene range longer than the action), not an actor standing still (mocap noise is ~1 mm).
+_HELD_TOLERANCE = 1e-5
+
+
+def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
+    """Frames to leave out at the start and at the end of a take because they repeat the pose
+    next to them: ``(leading, trailing)``. The first frame of motion and the last stay (the hold
+    starts from, or ends on, that pose). None when every frame holds one pose (a still pose, not
+    an animation: nothing is left out).
+
+    Blender exports the scene's frame range, and a 100-frame walk in a 250-frame scene ends in
+    4 s of its last pose held; a walk read 40 % slow without a word, and `range: auto` kept 2 s
+    of the hold. Even two frames held at each end of a 2 s take at 24 fps read it 8 % slow, so
+    every held frame goes (a frame moves further than the tolerance on any moving take)."""
+    count = len(world_pos)
+    if count < 3:
+        return 0, 0
+    scale = float(np.ptp(world_pos[0], axis=0).max()) or 1.0
+    tolerance = _HELD_TOLERANCE * scale
+
+    def same(a: int, b: int) -> bool:
+        return bool(np.abs(world_pos[a] - world_pos[b]).max() <= tolerance)
+
+    # Most takes differ between their last two frames and their first two: one frame's check.
+    lead_possible, tail_possible = same(0, 1), same(count - 1, count - 2)
+    if not (lead_possible or tail_possible):
+        return 0, 0
+
+    def run(anchor: int, order: slice) -> int:
+        moved = np.abs(world_pos[order] - world_pos[anchor]).max(axis=(1, 2)) > tolerance
+        return int(np.argmax(moved)) if moved.any() else count
+
+    lead = run(0, slice(None)) - 1 if lead_possible else 0
+    if lead >= count - 1:
+        return None
+    tail = run(count - 1, slice(None, None, -1)) - 1 if tail_possible else 0
+    return lead, tail
+
+
+@dataclass(frozen=True)
+class MotionPart:
+    """The frames of a take that `measure` reads: ``first`` to ``stop`` (exclusive), after keys
+    held at either end (``held``: frames left out at the start and at the end; None when every
+    frame holds one pose) and a leading rest/T-pose frame (``rest_frame``) are left out."""
+
+    first: int
+    stop: int
+    held: tuple[int, int] | None
+    rest_frame: bool
+
+    def notes(self, fps: float) -> list[str]:
+        notes = []
+        if self.held is None:
+            notes.append(STILL_NOTE)
+        elif any(self.held):
+            notes.append(held_note(*self.held, fps))
+        if self.rest_frame:
+            notes.append(REST_FRAME_NOTE)
+        return notes
+
+
+def motion_part(clip: Clip, world_pos: FloatArray, settings: RigSettings, *, rest: bool = True) -> MotionPart:
+    """Which frames of ``clip`` (posed as ``world_pos``) hold its motion (see `MotionPart`);
+    ``rest=False``: no rest frame is looked for (a `range:` that starts inside the take).
+
+    Held keys are found first: a T-pose held for some frames before the action leaves one rest
+    frame, which goes too; a take that stands still after its rest frame (its first key held)
+    loses that hold as well."""
+    count = clip.frame_count
+    held = held_ends(world_pos)
+    first, stop = (0, count) if held is None else (held[0], count - held[1])
+    rest_frame = rest and detect_tpose_frame(clip.trimmed(first, stop), world_pos[first:stop], settings)
+    if rest_frame:
+        first += 1
+        after = held_ends(world_pos[first:stop]) if held is not None else None
+        if held is not None and after is not None and after[0]:
+            first += after[0]
+            held = (held[0] + after[0], held[1])
+    return MotionPart(first, stop, held, rest_frame)

@@ -451,3 +451,38 @@ def mirrored_export(clip: Clip) -> Clip:
         translations=translations,
         notes=list(clip.notes),
     )
+
+
+def held_keys(clip: Clip, leading: int, trailing: int, *, jitter: float = 0.0, seed: int = 0) -> Clip:
+    """``clip`` with its first pose held for ``leading`` frames before it and its last pose for
+    ``trailing`` frames after it: what a DCC exports when the scene's frame range is longer than
+    the action (constant extrapolation past the first and last key). ``jitter``: radians of noise
+    on every held rotation, as a re-evaluated key carries it (float32 storage: ~1e-7)."""
+    rng = np.random.default_rng(seed)
+
+    def pad(values: FloatArray, quaternions: bool) -> FloatArray:
+        head = np.repeat(values[:1], leading, axis=0)
+        tail = np.repeat(values[-1:], trailing, axis=0)
+        if jitter and quaternions:
+            for block in (head, tail):
+                block += rng.normal(0.0, jitter / 2.0, block.shape)
+                block /= np.linalg.norm(block, axis=-1, keepdims=True)
+        return np.concatenate([head, values, tail])
+
+    return replace(
+        clip,
+        rotations=pad(clip.rotations, True),
+        translations=pad(clip.translations, False),
+        notes=list(clip.notes),
+    )
+
+
+def still_pose(clip: Clip, frames: int, frame: int = 0) -> Clip:
+    """One pose of ``clip`` (frame ``frame``) repeated ``frames`` times: a "TPose" action, or a
+    pose exported as an animation."""
+    return replace(
+        clip,
+        rotations=np.repeat(clip.rotations[frame : frame + 1], frames, axis=0),
+        translations=np.repeat(clip.translations[frame : frame + 1], frames, axis=0),
+        notes=list(clip.notes),
+    )

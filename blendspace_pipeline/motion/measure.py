@@ -28,7 +28,7 @@ from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
     DetectionGuess,
     RigSettings,
-    detect_tpose_frame,
+    motion_part,
     resolve_facing,
     resolve_root,
     resolve_units_guess,
@@ -37,7 +37,6 @@ from blendspace_pipeline.motion.detect import (
     stated_unit_note,
     up_vector,
 )
-from blendspace_pipeline.motion.notes import REST_FRAME_NOTE
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 # Below these a clip has no root motion worth placing (a warning, not a silent origin sample).
@@ -158,11 +157,11 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
     # `range:` entry of one take gets the same unit (and so comparable speeds).
     meters_per_unit, units_source, units_guess = resolve_units_guess(clip, whole_pos, settings, up_axis, root)
-    if (explicit is None or explicit[0] == 0) and detect_tpose_frame(
-        clip.trimmed(first, stop), whole_pos[first:stop], settings
-    ):
-        first += 1
-        notes.append(REST_FRAME_NOTE)
+    part = motion_part(
+        clip.trimmed(first, stop), whole_pos[first:stop], settings, rest=explicit is None or explicit[0] == 0
+    )
+    notes += part.notes(clip.fps)
+    first, stop = first + part.first, first + part.stop
     ground = _ground_basis(up_axis)
     if auto:
         span = steady_span(
@@ -236,7 +235,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     )
     if partial_stride:
         notes.append(
-            f"the measured {features['duration']:.2f} s hold no whole stride: the turn and direction "
+            f"no whole stride in the {features['duration']:.2f} s measured: the turn and direction "
             "keep the pelvis sway"
         )
     contacts = clip_contacts(used, settings, world_pos, meters_per_unit=meters_per_unit, up_axis=up_axis)
@@ -262,7 +261,9 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         # A track set without hierarchy (Godot) has no parents to compare, not all-roots.
         joint_parents=[int(p) for p in used.skeleton.parents] if used.skeleton.has_hierarchy else [],
         guesses=guesses,
-        range_used=range_used if (explicit is not None or auto or first > 0) else None,
+        range_used=range_used
+        if (explicit is not None or auto or first > 0 or stop < clip.frame_count)
+        else None,
         skeleton_key=skeleton_key(clip),
         partial_stride=partial_stride,
     )

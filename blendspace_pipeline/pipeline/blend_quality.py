@@ -39,7 +39,7 @@ from blendspace_pipeline.motion.blend_model import (
     prepare,
 )
 from blendspace_pipeline.motion.clip import Clip
-from blendspace_pipeline.motion.clip_ops.blend import without_rest_frame
+from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.contacts import FootContacts
 from blendspace_pipeline.motion.detect import RigSettings
@@ -138,7 +138,7 @@ class PreparedSamples:
         clip = _source_clip(sample, self.generated, self.space.manifest.directory)
         if clip is None or clip.frame_count < 4:
             return None
-        clip = without_rest_frame(clip, self.settings)
+        clip = measured_part(clip, self.settings)
         contacts = FootContacts.from_json(m.contacts, clip.duration)
         try:
             return prepare(clip, self.settings, m.meters_per_unit, contacts)

@@ -49,8 +49,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # the hips, stated forward / root / units the body contradicts are doubted, a moving fallback root;
 # 12: the knees (then the toes) are the legs' witness, net extent for roots, a child's unit noted;
 # 13: a file's up axis the body contradicts is doubted, root motion faster than any body is doubted,
-# a single-frame pose among a file's animations is left out; 14: a root that jumps in one frame.
-MEASUREMENT_REVISION = 14
+# a single-frame pose among a file's animations is left out; 14: a root that jumps in one frame;
+# 15: keys held at either end (a scene range longer than the action) are left out.
+MEASUREMENT_REVISION = 15
 
 
 def cache_key(

@@ -31,7 +31,7 @@ from blendspace_pipeline.motion.clip_ops.root_motion import compose, decompose, 
 from blendspace_pipeline.motion.contacts import FEET, BoolArray, plant_phases
 from blendspace_pipeline.motion.detect import (
     RigSettings,
-    detect_tpose_frame,
+    motion_part,
     resolve_root,
     resolve_units,
     resolve_up,
@@ -58,12 +58,12 @@ def check_compatible(clips: Sequence[Clip]) -> None:
             raise IncompatibleClips(f"{clip.name} has {clip.frame_count} frame(s): no motion to blend")
 
 
-def without_rest_frame(clip: Clip, settings: RigSettings) -> Clip:
-    """The clip without a leading rest/T-pose frame, decided as `measure` decides it, so a
-    generated clip is made of exactly the motion its sources were measured on."""
-    if detect_tpose_frame(clip, forward_kinematics(clip)[1], settings):
-        return clip.trimmed(1, clip.frame_count)
-    return clip
+def measured_part(clip: Clip, settings: RigSettings) -> Clip:
+    """The clip without keys held at either end and without a leading rest/T-pose frame, decided
+    as `measure` decides them, so a generated clip (and a played blend) is made of exactly the
+    motion its sources were measured on."""
+    part = motion_part(clip, forward_kinematics(clip)[1], settings)
+    return clip if (part.first, part.stop) == (0, clip.frame_count) else clip.trimmed(part.first, part.stop)
 
 
 def _sample_frames(
@@ -222,7 +222,7 @@ def blend_clips(
         raise ValueError("weights must be finite, >= 0 and not all 0")
     w = w / w.sum()
     check_compatible(clips)
-    sources = [without_rest_frame(clip, settings) for clip in clips]
+    sources = [measured_part(clip, settings) for clip in clips]
     motions = [decompose(clip, settings) for clip in sources]
     if len({m.up_axis for m in motions}) > 1:
         raise IncompatibleClips(

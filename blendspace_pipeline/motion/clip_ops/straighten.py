@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics
-from blendspace_pipeline.motion.clip_ops.blend import without_rest_frame
+from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.root_motion import compose, decompose, integrate, step_velocities
 from blendspace_pipeline.motion.clip_ops.sway import sway_free
@@ -24,7 +24,7 @@ from blendspace_pipeline.motion.detect import RigSettings
 def straighten_clip(clip: Clip, *, settings: RigSettings, name: str) -> Clip:
     """``clip`` with its net turn removed: measures turn 0 at the same speed and direction."""
     source = clip
-    clip = without_rest_frame(clip, settings)
+    clip = measured_part(clip, settings)
     if clip.frame_count < 2:
         raise IncompatibleClips(f"{clip.name} has {clip.frame_count} frame(s): no turn to remove")
     motion = decompose(clip, settings)

@@ -1,0 +1,160 @@
+"""Keys held at either end of a take: a DCC exports its scene's frame range, and an action shorter
+than the scene ends (or starts) in its last (first) pose held. Truth by construction: the held
+take must measure as the take without the hold, say what it left out, and everything that plays
+the take (blend quality, generated clips, exports) must use the same frames.
+
+Before, a 2 s walk at 1.4 m/s exported from Blender's default 250-frame scene read 0.27 m/s
+without a word (`test_blender.py` has that export).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.exporters import to_engine
+from blendspace_pipeline.exporters.unreal import CONVENTION as UNREAL
+from blendspace_pipeline.motion.clip_ops.blend import measured_part
+from blendspace_pipeline.motion.detect import RigSettings, held_ends
+from blendspace_pipeline.motion.hostile import HostileSpec, held_keys, still_pose, take
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.notes import HELD_MARK, REST_FRAME_NOTE, STILL_NOTE
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.space.document import BlendSpaceDocument
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+SETTINGS = RigSettings()
+GAITS = (
+    GaitSpec("walk_left", speed=1.4, turn_rate=30.0, duration=2.0),
+    GaitSpec("strafe_right", speed=1.2, direction=-90.0, duration=2.0, stride_length=1.0),
+    GaitSpec("run_back", speed=3.0, direction=180.0, turn_rate=-20.0, duration=1.5, stride_length=2.2),
+)
+# (first, last) seconds held: a scene starting before the action, a scene range past its end,
+# both, and a doubled key at each end.
+HOLDS = ((0.0, 2.0), (1.0, 0.0), (0.5, 3.0), ("1 frame", "1 frame"))
+
+
+def _frames(hold: float | str, fps: float) -> int:
+    return 1 if hold == "1 frame" else round(float(hold) * fps)
+
+
+@pytest.mark.parametrize("fps", [24.0, 30.0, 60.0, 120.0])
+@pytest.mark.parametrize("hold", HOLDS, ids=lambda h: f"{h[0]}-{h[1]}")
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_held_keys_measure_as_the_take_without_them(spec: GaitSpec, hold: tuple, fps: float) -> None:
+    clip = generate(GaitSpec(**{**spec.__dict__, "fps": fps}))
+    lead, tail = _frames(hold[0], fps), _frames(hold[1], fps)
+    # float32 storage (glTF, FBX) re-evaluates a held key with ~1e-7 of noise: still the same key.
+    for jitter in (0.0, 1e-7):
+        padded = held_keys(clip, lead, tail, jitter=jitter, seed=lead + tail)
+        plain, held = measure(clip, SETTINGS), measure(padded, SETTINGS)
+        for key, value in plain.features.items():
+            assert held.features[key] == pytest.approx(value, abs=1e-6), key
+        assert held.frames == clip.frame_count
+        assert held.range_used == pytest.approx((lead / fps, (lead + clip.frame_count - 1) / fps))
+        [note] = [n for n in held.notes if n.startswith(HELD_MARK)]
+        for where, count in (("first", lead), ("last", tail)):
+            assert (f"the {where} {count} frame" in note) == bool(count), note
+        assert not held.guesses
+        # The frames blend quality plays and generated clips are made of: the same ones.
+        part = measured_part(padded, SETTINGS)
+        assert part.frame_count == clip.frame_count
+        assert np.allclose(part.rotations[0], clip.rotations[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_range_auto_keeps_none_of_a_hold(spec: GaitSpec) -> None:
+    """`range: auto` had kept 2 s of a held last pose on an FBX export (its steadiness test sees
+    no stride to break in a pose that never moves)."""
+    clip = generate(GaitSpec(**{**spec.__dict__, "duration": 4.0}))
+    auto = measure(held_keys(clip, 30, 120), SETTINGS, "auto")
+    assert auto.range_used is not None
+    assert auto.range_used[0] >= 1.0 - 1e-9 and auto.range_used[1] <= 5.0 + 1e-9
+    assert auto.features["speed"] == pytest.approx(spec.signed_speed, abs=0.03)
+    assert auto.features["turn_rate"] == pytest.approx(spec.turn_rate, abs=0.6)
+
+
+def test_a_held_rest_pose_leaves_the_hold_and_its_rest_frame_out() -> None:
+    """A T-pose held for 20 frames before the action (the scene starts before the first key of
+    the walk): the hold and the rest frame it ends in both go."""
+    clip = generate(GAITS[0], tpose_first_frame=True)
+    measured = measure(held_keys(clip, 20, 0), SETTINGS)
+    plain = measure(clip.trimmed(1, clip.frame_count), SETTINGS)
+    assert REST_FRAME_NOTE in measured.notes
+    assert measured.frames == clip.frame_count - 1
+    for key, value in plain.features.items():
+        assert measured.features[key] == pytest.approx(value, abs=1e-6), key
+
+
+def test_a_take_standing_still_after_its_rest_frame_loses_the_stand_too() -> None:
+    """T-pose, then the first key held (the actor waits), then the walk: both holds go."""
+    spec = HostileSpec("walk", stand=0.5, fps=30.0, up="y", unit="m")
+    whole = take(spec).clip
+    measured = measure(whole, SETTINGS)
+    assert REST_FRAME_NOTE in measured.notes
+    [note] = [n for n in measured.notes if n.startswith(HELD_MARK)]
+    # The stand's 15 frames and the walk's first frame (it starts from the standing pose) are
+    # one pose: 15 go, and as many at the end.
+    assert "the first 15 frames (0.50 s), the last 15 frames (0.50 s)" in note
+    assert measured.frames == whole.frame_count - 1 - 15 - 15
+
+
+def test_a_still_pose_is_said_and_kept_whole() -> None:
+    """A "TPose" action (one pose, every frame): nothing is left out, and the note says why it
+    reads as an idle."""
+    pose = still_pose(generate(GAITS[0]), 40, frame=12)
+    measured = measure(pose, SETTINGS)
+    assert STILL_NOTE in measured.notes
+    assert measured.frames == 40 and measured.range_used is None
+    assert measured.in_place
+    assert held_ends(np.zeros((5, 3, 3))) is None
+
+
+def test_an_actor_standing_still_is_not_a_held_key() -> None:
+    """Mocap noise (a millimetre) on a stand: the actor moves, nothing is left out."""
+    clip = held_keys(generate(GAITS[0]), 0, 60)
+    rng = np.random.default_rng(3)
+    noisy = clip.translations.copy()
+    noisy[-60:, 0] += rng.normal(0.0, 0.001, (60, 3))
+    measured = measure(replace(clip, translations=noisy), SETTINGS)
+    assert not any(n.startswith(HELD_MARK) for n in measured.notes)
+    assert measured.frames == clip.frame_count
+
+
+def test_a_held_export_through_a_file_says_the_span_the_engine_must_cut(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Through a BVH file (6 decimals) and a build: the document's `clip.range` is the moving
+    part, exported markers count from the file's start, and the export says the engine plays
+    the hold unless the span is cut."""
+    (tmp_path / "clips").mkdir()
+    walk = generate(GaitSpec("walk", speed=1.4, duration=2.0))
+    write_bvh_clip(held_keys(walk, 15, 60), tmp_path / "clips" / "walk.bvh")
+    for other in GAITS:
+        write_bvh_clip(generate(other), tmp_path / "clips" / f"{other.name}.bvh")
+    [read] = read_clips(tmp_path / "clips" / "walk.bvh")
+    assert measure(read, SETTINGS).features["speed"] == pytest.approx(1.4, abs=0.01)
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    assert main(["build", str(manifest), "--no-fix", "--out", str(tmp_path / "out")]) in (0, 1)
+    doc = json.loads((tmp_path / "out" / "t.blendspace.json").read_text(encoding="utf-8"))
+    [sample] = [s for s in doc["samples"] if s["name"] == "walk"]
+    assert sample["features"]["speed"] == pytest.approx(1.4, abs=0.01)
+    assert sample["clip"]["range"] == pytest.approx([0.5, 0.5 + 2.0], abs=1e-4)
+    assert any(n.startswith(HELD_MARK) for n in sample["clip"]["notes"])
+    [engine] = [
+        s for s in to_engine(BlendSpaceDocument.model_validate(doc), UNREAL).samples if s.name == "walk"
+    ]
+    assert [t for _, t in engine.markers] == pytest.approx(
+        [m["time"] + 0.5 for m in sample["markers"]], abs=1e-5
+    )
+    capsys.readouterr()
+    assert main(["export", str(tmp_path / "out" / "t.blendspace.json"), "--engine", "unreal"]) == 0
+    [note] = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note: walk ")]
+    assert "walk was measured on 0.50-2.50 s of walk.bvh (held keys at its ends left out)" in note
