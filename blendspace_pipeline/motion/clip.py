@@ -321,6 +321,19 @@ def _work(count: int, frames: int, widest: int) -> _Work:
     return work
 
 
+def rest_positions(clip: Clip) -> FloatArray:
+    """World joint positions of ``clip``'s rest pose (J, 3)."""
+    skeleton = clip.skeleton
+    rest = replace(
+        clip,
+        rotations=skeleton.rest_rotations[None].copy(),
+        translations=skeleton.rest_translations[None].copy(),
+        notes=[],
+    )
+    positions: FloatArray = forward_kinematics(rest)[1][0]
+    return positions
+
+
 def forward_kinematics_by_joint(clip: Clip) -> tuple[FloatArray, FloatArray]:
     """`forward_kinematics` joint by joint, parents first, on the (F, J, ...) arrays as they are:
     the reference it is tested against, and the path for tracks without a hierarchy or arrays

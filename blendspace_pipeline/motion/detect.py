@@ -16,7 +16,8 @@ import numpy as np
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion import stats
-from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.body_shape import ShapeHips, hips_by_shape, leg_chain
+from blendspace_pipeline.motion.clip import Clip, rest_positions
 from blendspace_pipeline.motion.joint_names import find_hips, split_side
 from blendspace_pipeline.motion.notes import REST_FRAME_NOTE, STILL_NOTE, held_note
 from blendspace_pipeline.motion.quaternions import FloatArray
@@ -121,6 +122,10 @@ def rig_memo(kind: str, clip: Clip, settings: RigSettings, compute: Callable[[],
         settings.right_hip,
         *extra,
     )
+    if skeleton.has_hierarchy and find_hips(skeleton) is None:
+        # Hips found by the rest pose's shape (`body_shape`): rigs that share numbered names
+        # (`joint_01`...) and parents may still be other bodies.
+        key += (skeleton.rest_translations.tobytes(), skeleton.rest_rotations.tobytes())
     try:
         return cast(_T, _RIG_MEMO[key])
     except KeyError:
@@ -161,13 +166,23 @@ def _hip_pair(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
         return None
     found = find_hips(clip.skeleton)
     if found is None:
-        return None
+        shaped = shape_hips(clip, settings)
+        if shaped is None:
+            return None
+        found = (shaped.left, shaped.right)
     left, right = found
     if settings.left_hip != "auto":
         left = _joint(clip, settings.left_hip, "left_hip")
     if settings.right_hip != "auto":
         right = _joint(clip, settings.right_hip, "right_hip")
     return _two_hips(clip, left, right)
+
+
+def shape_hips(clip: Clip, settings: RigSettings) -> ShapeHips | None:
+    """The hips by the skeleton's shape (`body_shape`), when no joint names say left and right."""
+    if not clip.skeleton.has_hierarchy or find_hips(clip.skeleton) is not None:
+        return None
+    return rig_memo("shape_hips", clip, settings, lambda: hips_by_shape(clip.skeleton, rest_positions(clip)))
 
 
 def _two_hips(clip: Clip, left: int, right: int) -> tuple[int, int]:
@@ -248,8 +263,12 @@ def _body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
     if hips is None:
         return None
     feet = []
+    shaped = shape_hips(clip, settings)
     for hip in hips:
         foot = _named_below(clip, hip, _FOOT_BASES)
+        leg = leg_chain(clip.skeleton, hip) if shaped is not None else []
+        if foot is None and len(leg) >= 3:
+            foot = leg[2]  # hip, knee, ankle: the shape's own reading of a leg (the toe is below)
         if foot is None:
             below = clip.skeleton.descendants(hip)
             if not below:
@@ -640,6 +659,9 @@ def _hip_line_facing(
     sampled = _sampled(world_pos)
     hip_line = quat.cross(sampled[:, left] - sampled[:, right], up)
     legs = legs_say(clip, settings, sampled, up, hip_line) if check_legs else LegsSay(None, None)
+    shaped = None if stated else shape_hips(clip, settings)
+    if shaped is not None:
+        return _shape_facing(clip, up, shaped, legs, check_legs)
     swapped = f"skeleton: {{left_hip: {names[right]}, right_hip: {names[left]}}}"
     if legs.reversed() and not stated:
         # The legs say the hip line faces backwards: the joint named left is on the character's
@@ -677,6 +699,47 @@ def _hip_line_facing(
     elif stated and not legs.confirmed():  # the body cannot settle it: the names can
         guess = _doubt_stated_hips(clip, hips)
     return Facing(label="hip line", vectors=from_hip_line, guess=guess)
+
+
+def _shape_facing(clip: Clip, up: FloatArray, shaped: ShapeHips, legs: LegsSay, check_legs: bool) -> Facing:
+    """The facing of hips found by the skeleton's shape (`body_shape`): the rest pose's toes tell
+    left from right, or else the legs' motion; the knees over the take have the last word, as
+    they have over joint names. A guess when neither tells, or when the two disagree."""
+    names = clip.skeleton.names
+    left, right = shaped.left, shaped.right
+    by = "the toes of the rest pose" if shaped.sided else ""
+    guess_evidence = ""
+    if check_legs and legs.reversed():
+        left, right = right, left
+        by = f"the {_witness(legs)} over the take"
+        if shaped.sided:
+            guess_evidence = f"the rest pose's toes and the {_witness(legs)} over the take disagree"
+    elif check_legs and not shaped.sided:
+        if legs.confirmed():
+            by = f"the {_witness(legs)} over the take"
+        else:
+            guess_evidence = "neither the rest pose's toes nor the legs' motion show which hip is the left"
+    elif not shaped.sided:
+        guess_evidence = "the rest pose has no toes to tell left from right, and the up axis is in doubt"
+    note = (
+        f"hips found by the skeleton's shape (no joint names say left and right): {names[left]} the left, "
+        f"{names[right]} the right" + (f", told apart by {by}" if by and not guess_evidence else "")
+    )
+    guess = None
+    if guess_evidence:
+        guess = DetectionGuess(
+            "facing",
+            f"left hip {names[left]}, right hip {names[right]}",
+            guess_evidence,
+            f"skeleton: {{left_hip: {names[left]}, right_hip: {names[right]}}} (or the other way round)",
+        )
+
+    def from_hip_line(_rot: FloatArray, pos: FloatArray) -> FloatArray:
+        return quat.cross(pos[:, left] - pos[:, right], up)
+
+    return Facing(
+        label="hip line (hips by the skeleton's shape)", vectors=from_hip_line, notes=[note], guess=guess
+    )
 
 
 def _witness(legs: LegsSay) -> str:

@@ -371,8 +371,10 @@ def _depth_first(parents: list[int], reverse_root: bool) -> list[int]:
 
 # Joint naming schemes of public mocap sources and DCCs, for the humanoid rig's joints: DAZ/Poser
 # (and CMU's Daz-friendly BVH release), CMU's ASF/AMC names, OptiTrack Motive's asset prefix,
-# MikuMikuDance's Japanese names, and names that say nothing (`joint_07`): then no hip is found.
-NAME_SCHEMES = ("daz", "asf", "prefixed", "mmd", "anonymous")
+# MikuMikuDance's Japanese names, and names that say nothing (`NAMELESS`: an exporter's `joint_07`,
+# Blender's `Bone.007`): then only the skeleton's shape finds the hips (`body_shape`).
+NAME_SCHEMES = ("daz", "asf", "prefixed", "mmd", "anonymous", "blender")
+NAMELESS = ("anonymous", "blender")
 _SCHEME_NAMES = {
     "daz": {
         "Hips": "hip", "UpLeg": "Thigh", "Leg": "Shin", "Foot": "Foot", "Toe": "Toe", "Spine": "abdomen",
@@ -403,6 +405,8 @@ def renamed(clip: Clip, scheme: str) -> Clip:
 def _scheme_name(name: str, scheme: str, index: int) -> str:
     if scheme == "anonymous":
         return f"joint_{index:02d}"
+    if scheme == "blender":
+        return f"Bone.{index:03d}" if index else "Bone"
     side = next((s for s in ("Left", "Right") if name.startswith(s)), "")
     base = name[len(side) :]
     if scheme == "prefixed":
@@ -484,5 +488,28 @@ def still_pose(clip: Clip, frames: int, frame: int = 0) -> Clip:
         clip,
         rotations=np.repeat(clip.rotations[frame : frame + 1], frames, axis=0),
         translations=np.repeat(clip.translations[frame : frame + 1], frames, axis=0),
+        notes=list(clip.notes),
+    )
+
+
+def without_toes(clip: Clip) -> Clip:
+    """``clip`` on its skeleton without the toe joints (legs of hip, knee and ankle: many game
+    rigs and BVH exports end the leg at the ankle)."""
+    skeleton = clip.skeleton
+    keep = [i for i, name in enumerate(skeleton.names) if "toe" not in name.lower()]
+    remap = {old: new for new, old in enumerate(keep)}
+    parents = [-1 if skeleton.parents[i] < 0 else remap[skeleton.parents[i]] for i in keep]
+    other = replace(
+        skeleton,
+        names=tuple(skeleton.names[i] for i in keep),
+        parents=tuple(parents),
+        rest_translations=skeleton.rest_translations[keep],
+        rest_rotations=skeleton.rest_rotations[keep],
+    )
+    return replace(
+        clip,
+        skeleton=other,
+        rotations=np.ascontiguousarray(clip.rotations[:, keep]),
+        translations=np.ascontiguousarray(clip.translations[:, keep]),
         notes=list(clip.notes),
     )

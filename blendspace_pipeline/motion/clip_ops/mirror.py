@@ -13,11 +13,13 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
-from blendspace_pipeline.motion.clip import Clip, Skeleton, forward_kinematics
+from blendspace_pipeline.motion.body_shape import mirror_partners
+from blendspace_pipeline.motion.clip import Clip, Skeleton, forward_kinematics, rest_positions
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.root_motion import decompose, ground_basis
 from blendspace_pipeline.motion.detect import RigSettings
@@ -107,7 +109,30 @@ def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None)
             f"no mirror partner for joint(s) {', '.join(sorted(unpaired)[:6])}; "
             "set `skeleton.mirror: {left: TOKEN, right: TOKEN}` in the manifest"
         )
+    if partner == list(range(len(names))) and skeleton.has_hierarchy:
+        # No name says left or right (`joint_07`, `Bone.007`): every joint kept its own motion, and
+        # a mirrored walk came out with its legs crossed. The rest pose's symmetry pairs them.
+        by_shape = mirror_partners(skeleton, _rest_positions(skeleton))
+        if by_shape is None:
+            raise IncompatibleClips(
+                "no joint name says left or right, and the rest pose is no mirror image of itself "
+                "across the hips: no joint can be paired with its mirror partner; name the joints' "
+                "sides (e.g. LeftUpLeg / RightUpLeg) to mirror this rig"
+            )
+        return by_shape
     return partner
+
+
+def _rest_positions(skeleton: Skeleton) -> FloatArray:
+    rest = Clip(
+        "rest",
+        Path(),
+        skeleton,
+        skeleton.rest_rotations[None].copy(),
+        skeleton.rest_translations[None].copy(),
+        30.0,
+    )
+    return rest_positions(rest)
 
 
 def _reflect_rotation(q: FloatArray, normal: FloatArray) -> FloatArray:

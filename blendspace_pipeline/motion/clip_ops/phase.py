@@ -22,7 +22,7 @@ from typing import Literal
 import numpy as np
 
 from blendspace_pipeline.motion import stats
-from blendspace_pipeline.motion.clip import Clip, forward_kinematics
+from blendspace_pipeline.motion.clip import Clip, forward_kinematics, rest_positions
 from blendspace_pipeline.motion.detect import (
     RigSettings,
     hip_pair,
@@ -93,24 +93,9 @@ def _foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
         if named:
             feet.append(named[0])
             continue
-        rest_pos = _rest_positions(clip)  # only rigs without a named foot pay for posing the rest pose
+        rest_pos = rest_positions(clip)  # only rigs without a named foot pay for posing the rest pose
         feet.append(max(below, key=lambda j: np.linalg.norm(rest_pos[j] - rest_pos[hip])))
     return feet[0], feet[1]
-
-
-def _rest_positions(clip: Clip) -> FloatArray:
-    """World joint positions of ``clip``'s rest pose."""
-    skeleton = clip.skeleton
-    rest = Clip(
-        clip.name,
-        clip.source,
-        skeleton,
-        skeleton.rest_rotations[None].copy(),
-        skeleton.rest_translations[None].copy(),
-        clip.fps,
-    )
-    positions: FloatArray = forward_kinematics(rest)[1][0]
-    return positions
 
 
 Posed = tuple[FloatArray, FloatArray]  # (world rotations, world positions) of every frame
