@@ -50,7 +50,8 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 12: the knees (then the toes) are the legs' witness, net extent for roots, a child's unit noted;
 # 13: a file's up axis the body contradicts is doubted, root motion faster than any body is doubted,
 # a single-frame pose among a file's animations is left out; 14: a root that jumps in one frame;
-# 15: keys held at either end (a scene range longer than the action) are left out.
+# 15: keys held at either end (a scene range longer than the action) are left out, and the hips of
+# rigs whose names say nothing are found by the skeleton's shape.
 MEASUREMENT_REVISION = 15
 
 
