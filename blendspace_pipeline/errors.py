@@ -9,13 +9,14 @@ Anything else that escapes is an internal error (exit 3).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 EXIT_OK = 0
 EXIT_DIAGNOSTICS = 1
 EXIT_INPUT = 2
 EXIT_INTERNAL = 3
+MORE_SHOWN = 20
 
 
 # C0 and C1 control characters and the Unicode line and paragraph separators: printed raw, a clip
@@ -42,6 +43,9 @@ class InputError(Exception):
     line: int | None = None
     column: int | None = None
     hint: str | None = None
+    # Further errors of the same run, each its own `path:line: message` (every unreadable clip of a
+    # build, not one per attempt): rendered after this one, at most `MORE_SHOWN` of them.
+    more: list[InputError] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         super().__init__(self.message)
@@ -63,7 +67,14 @@ class InputError(Exception):
         text = f"{where}: {message}" if where else message
         if self.hint:
             text += "\n    hint: " + printable_hint(self.hint, "          ")
-        return text
+        hints = {self.hint}
+        shown = []
+        for other in self.more[:MORE_SHOWN]:  # a hint said once (ten files failing alike)
+            shown.append(other.render() if other.hint not in hints else replace(other, hint=None).render())
+            hints.add(other.hint)
+        if len(self.more) > MORE_SHOWN:
+            shown.append(f"... and {len(self.more) - MORE_SHOWN} more like these")
+        return "\n".join([text, *shown])
 
 
 class ManifestError(InputError):

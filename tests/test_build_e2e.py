@@ -17,6 +17,7 @@ import pytest
 from pxr import Usd
 
 from blendspace_pipeline.cli import main
+from blendspace_pipeline.errors import MORE_SHOWN
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
@@ -143,6 +144,27 @@ def test_garbage_clip_is_exit_2_naming_the_file(tmp_path: Path) -> None:
     assert "Traceback" not in result.stderr
     assert str(bad) in result.stderr
     assert bad.read_bytes() == before
+    assert not (tmp_path / "build").exists()
+
+
+def test_every_unreadable_clip_is_named_at_once(tmp_path: Path) -> None:
+    """Only the first unreadable file was named: a studio fixing ten files ran ten builds. Each is
+    its own `path:line: message`, a hint shared by several is said once, and past `MORE_SHOWN`
+    the rest are counted."""
+    _write_clip(tmp_path / "clips", GaitSpec("walk", speed=1.4))
+    for index in range(MORE_SHOWN + 3):
+        (tmp_path / "clips" / f"bad{index:02d}.bvh").write_text("HIERARCHY\nROOT x\n{\n")
+    (tmp_path / "broken.glb").write_bytes(b"glTF garbage")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: t\nclips:\n  - path: clips/*.bvh\n  - path: broken.glb\n")
+    result = _cli("build", str(manifest))
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.splitlines()
+    bvh = [line for line in lines if "truncated BVH" in line]
+    assert len(bvh) == MORE_SHOWN + 1 and bvh[0].startswith(str(tmp_path / "clips" / "bad00.bvh") + ":3: ")
+    assert sum("hint: re-export the clip as BVH" in line for line in lines) == 1
+    assert lines[-1] == "... and 3 more like these"  # broken.glb, the 23rd error, among them
     assert not (tmp_path / "build").exists()
 
 
