@@ -24,7 +24,16 @@ from blendspace_pipeline.motion.clip import Clip, forward_kinematics, rest_posit
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.mirror import mirror_clip, mirror_pairs
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.hostile import NAMELESS, on_other_skeleton, renamed, without_toes
+from blendspace_pipeline.motion.hostile import (
+    NAMELESS,
+    heel_bones,
+    long_coat,
+    on_other_skeleton,
+    renamed,
+    thigh_twist,
+    with_joints,
+    without_toes,
+)
 from blendspace_pipeline.motion.measure import measure, trim
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
@@ -192,3 +201,53 @@ def test_an_asymmetric_nameless_rig_is_not_mirrored_blindly() -> None:
     assert hips_by_shape(lopsided.skeleton, rest_positions(lopsided)) is None
     with pytest.raises(IncompatibleClips, match="no joint name says left or right"):
         mirror_pairs(lopsided.skeleton)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [heel_bones, long_coat, thigh_twist],
+    ids=["heel-before-toe", "floor-length-coat", "thigh-twist"],
+)
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_rigs_that_look_like_other_legs_measure_as_named(
+    change: Callable[[Clip], Clip], spec: GaitSpec
+) -> None:
+    """From the hostile pass: a heel bone listed before the toe was taken for the toe (the walk read
+    backwards, -1.4 m/s, and the false toes vetoed the knees); a floor-length coat's front and
+    back chains (longer than the legs, mirror images across the body's side) were taken for the
+    legs (a walk read as a strafe); a twist joint inside the thigh made the knee the ankle (no legs
+    found)."""
+    clip = change(generate(spec))
+    nameless = measure(renamed(clip, "blender"), SETTINGS)
+    assert nameless.facing == SHAPE and not nameless.guesses, nameless.guesses
+    _same(nameless.features, measure(clip, SETTINGS).features)
+    hips = hips_by_shape(renamed(clip, "blender").skeleton, rest_positions(clip))
+    assert hips is not None
+    assert (clip.skeleton.names[hips.left], clip.skeleton.names[hips.right]) == ("LeftUpLeg", "RightUpLeg")
+
+
+def test_a_few_sided_helper_names_do_not_stop_the_shape_pairing() -> None:
+    """Only two IK helpers named `ik_target_L` / `_R` on a `Bone.NNN` rig: mirroring paired them by
+    name and every other joint with itself (a mirrored walk's feet 0.69 m off, silently)."""
+    clip = with_joints(
+        generate(GAITS[0]),
+        [("ik_target_L", "Hips", (0.3, -0.9, 0.2), None), ("ik_target_R", "Hips", (-0.3, -0.9, 0.2), None)],
+    )
+    named = mirror_clip(clip, settings=SETTINGS, name="m")
+    names = [n if n.startswith("ik_target") else f"Bone.{i:03d}" for i, n in enumerate(clip.skeleton.names)]
+    partial = replace(clip, skeleton=replace(clip.skeleton, names=tuple(names)))
+    assert mirror_pairs(partial.skeleton) == mirror_pairs(clip.skeleton)
+    other = mirror_clip(partial, settings=SETTINGS, name="m")
+    assert np.allclose(forward_kinematics(other)[1], forward_kinematics(named)[1], atol=1e-6)
+
+
+@pytest.mark.parametrize("take", ["131_01", "131_02"])
+def test_real_cmu_takes_renamed_pick_the_same_auto_range(take: str) -> None:
+    """The stride detector used the toes of a nameless rig and the ankles of a named one: 131_02's
+    `range: auto` differed (turn 4.30 deg/s named, 5.08 nameless, and a partial-stride warning)."""
+    [clip] = read_clips(shared_data("cmu", f"{take}.bvh"))
+    named = measure(clip, SETTINGS, "auto")
+    nameless = measure(renamed(clip, "anonymous"), SETTINGS, "auto")
+    assert nameless.range_used == named.range_used
+    assert nameless.partial_stride == named.partial_stride
+    _same(nameless.features, named.features)

@@ -19,6 +19,7 @@ import pytest
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.exporters import to_engine
 from blendspace_pipeline.exporters.unreal import CONVENTION as UNREAL
+from blendspace_pipeline.motion.clip import forward_kinematics
 from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings, held_ends
 from blendspace_pipeline.motion.hostile import HostileSpec, held_keys, still_pose, take
@@ -158,3 +159,35 @@ def test_a_held_export_through_a_file_says_the_span_the_engine_must_cut(
     assert main(["export", str(tmp_path / "out" / "t.blendspace.json"), "--engine", "unreal"]) == 0
     [note] = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note: walk ")]
     assert "walk was measured on 0.50-2.50 s of walk.bvh (held keys at its ends left out)" in note
+
+
+def test_a_rest_frame_then_one_pose_held_is_a_still_pose() -> None:
+    """A pose asset exported with its bind frame: the held end was cut first, leaving two frames,
+    too few to find the rest frame, and the pose read a 104 deg/s turn."""
+    clip = generate(GAITS[0], tpose_first_frame=True)
+    pose = still_pose(clip, 29, frame=7)
+    asset = replace(
+        pose,
+        rotations=np.concatenate([clip.rotations[:1], pose.rotations]),
+        translations=np.concatenate([clip.translations[:1], pose.translations]),
+    )
+    measured = measure(asset, SETTINGS)
+    assert REST_FRAME_NOTE in measured.notes and STILL_NOTE in measured.notes
+    assert measured.features["turn_rate"] == 0.0 and measured.features["speed"] == 0.0
+    assert measured.frames == 29
+
+
+def test_a_slow_breath_loses_at_most_a_few_frames() -> None:
+    """An idle breathing 0.3 deg over 5 s at 120 fps, starting at the top of a breath: its first
+    frames move a few micrometres each. The tolerance (3 um on an adult) leaves out 8 frames at
+    each end (0.07 s; the 0.02 mm of the first version left out 18, with a note blaming the scene
+    range)."""
+    idle = generate(GaitSpec("idle", duration=5.0, fps=120.0))
+    chest = idle.skeleton.names.index("Chest")
+    rotations = idle.rotations.copy()
+    angle = np.radians(0.3) * 0.5 * (1.0 + np.cos(2.0 * np.pi * np.arange(idle.frame_count) / 600.0))
+    rotations[:, chest] = np.stack(
+        [np.sin(angle / 2.0), np.zeros_like(angle), np.zeros_like(angle), np.cos(angle / 2.0)], axis=1
+    )
+    held = held_ends(forward_kinematics(replace(idle, rotations=rotations))[1])
+    assert held is not None and held[0] <= 10 and held[1] <= 10

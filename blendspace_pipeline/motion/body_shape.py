@@ -3,14 +3,15 @@
 Hand-built rigs (Blender's `Bone`, `Bone.001`...), exports that number their joints, and names in
 a language `joint_names` does not know give no left and right hip. Without them the facing came
 from an assumed root axis (a walk read 90 deg sideways on a rig facing +X) and the unit from a
-guess. The legs are still there in the hierarchy: two sibling chains of three or more joints,
-mirror images of each other in the rest pose, the pair nearest the root (arms hang from the
-chest, further down the hierarchy; a quadruped's hind legs come first).
+guess. The legs are still there in the hierarchy: two sibling chains, mirror images of each other
+in the rest pose, that hang down to the floor with a knee between hip and ankle. Among such pairs
+the one reaching the floor wins (cloth and coat chains end above it, arms hang from the chest),
+then the one nearest the root (a quadruped's hind legs).
 
 Which of the two is the left one: in the rest pose, the toes point forward from the ankles, and
-forward is (left hip - right hip) x up, up being from the feet to the hips. Without toes (a chain
+forward is (left hip - right hip) x up, up being from the ankles to the hips. Without toes (a chain
 of hip, knee and ankle), or with feet that point nowhere clear, the sides stay open and the legs'
-motion decides (`detect._hip_line_facing`).
+motion decides (`detect._shape_facing`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,13 @@ from blendspace_pipeline.motion.quaternions import FloatArray
 _LENGTH_TOLERANCE = 0.1  # bones of the two legs agree within this fraction of the longer one
 _MIRROR_TOLERANCE = 0.1  # each joint within this fraction of the leg's length of its mirror image
 _SIDES_COS = 0.5  # the toes tell the sides when they point within 60 deg of one way
+# The ankle: the first joint of the leg this close to its far end (a fraction of the hip's
+# distance to it): a foot is a fifth of a leg, a knee half of it, a thigh twist joint more.
+_ANKLE_REACH = 0.25
+# Pairs whose lowest points lie within this fraction of their length of each other count as
+# reaching the floor alike (the nearest to the root then wins); a coat's hem 3 cm above the floor
+# does not reach it.
+_FLOOR_STEP = 0.02
 
 
 @dataclass(frozen=True)
@@ -38,35 +46,51 @@ class ShapeHips:
     sided: bool
 
 
+@dataclass(frozen=True)
+class _Legs:
+    a: list[int]  # hip to the far end, each
+    b: list[int]
+    ankle: int  # index of the ankle in both
+    length: float
+
+
 def hips_by_shape(skeleton: Skeleton, rest_pos: FloatArray) -> ShapeHips | None:
-    """The hip joints of the mirrored pair of leg chains nearest the root, or None.
-    ``rest_pos``: the rest pose's world joint positions (J, 3)."""
+    """The hip joints of the mirrored pair of leg chains that reaches the floor, nearest the root
+    among those, or None. ``rest_pos``: the rest pose's world joint positions (J, 3)."""
+    legs = find_legs(skeleton, rest_pos)
+    if legs is None:
+        return None
+    side = _sides(rest_pos, legs)
+    if side is None:
+        return ShapeHips(legs.a[0], legs.b[0], sided=False)
+    return (
+        ShapeHips(legs.a[0], legs.b[0], sided=True)
+        if side > 0
+        else ShapeHips(legs.b[0], legs.a[0], sided=True)
+    )
+
+
+def find_legs(skeleton: Skeleton, rest_pos: FloatArray) -> _Legs | None:
     if not skeleton.has_hierarchy:
         return None
     depth = _depths(skeleton.parents)
-    best: tuple[tuple[int, float], list[int], list[int]] | None = None
+    found: list[tuple[_Legs, float]] = []
     for parent in range(skeleton.joint_count):
         children = skeleton.children(parent)
         for i, a in enumerate(children):
-            chain_a = leg_chain(skeleton, a)
+            chain_a = leg_chain(skeleton, a, rest_pos)
             for b in children[i + 1 :]:
-                chain_b = leg_chain(skeleton, b)
-                found = _mirrored_legs(skeleton, rest_pos, chain_a, chain_b)
-                if found is None:
-                    continue
-                length, hip = found
-                rank = (depth[chain_a[hip]], -length)
-                if best is None or rank < best[0]:
-                    best = (rank, chain_a[hip:], chain_b[hip:])
-    if best is None:
+                legs = _mirrored_legs(skeleton, rest_pos, chain_a, leg_chain(skeleton, b, rest_pos))
+                if legs is not None:
+                    found.append((legs, _above_floor(rest_pos, legs)))
+    if not found:
         return None
-    _, leg_a, leg_b = best
-    side = _sides(rest_pos, leg_a, leg_b)
-    if side is None:
-        return ShapeHips(leg_a[0], leg_b[0], sided=False)
-    return (
-        ShapeHips(leg_a[0], leg_b[0], sided=True) if side > 0 else ShapeHips(leg_b[0], leg_a[0], sided=True)
-    )
+
+    def rank(item: tuple[_Legs, float]) -> tuple[int, int, float]:
+        legs, gap = item
+        return int(gap / (_FLOOR_STEP * legs.length)), depth[legs.a[0]], -legs.length
+
+    return min(found, key=rank)[0]
 
 
 def _depths(parents: tuple[int, ...] | list[int]) -> list[int]:
@@ -76,8 +100,9 @@ def _depths(parents: tuple[int, ...] | list[int]) -> list[int]:
     return depth
 
 
-def leg_chain(skeleton: Skeleton, top: int) -> list[int]:
-    """``top`` and down its deepest line of descendants (the first such child on a tie)."""
+def leg_chain(skeleton: Skeleton, top: int, rest_pos: FloatArray) -> list[int]:
+    """``top`` and down its deepest line of descendants; on a tie, the child whose subtree reaches
+    farthest from ``top`` (a foot's toe, not the heel bone beside it)."""
     heights: dict[int, int] = {}
 
     def height(joint: int) -> int:
@@ -85,19 +110,36 @@ def leg_chain(skeleton: Skeleton, top: int) -> list[int]:
             heights[joint] = 1 + max((height(c) for c in skeleton.children(joint)), default=0)
         return heights[joint]
 
+    def reach(joint: int) -> float:
+        below = [joint, *skeleton.descendants(joint)]
+        return float(np.linalg.norm(rest_pos[below] - rest_pos[top], axis=1).max())
+
     chain = [top]
     while children := skeleton.children(chain[-1]):
-        chain.append(max(children, key=height))
+        chain.append(max(children, key=lambda c: (height(c), reach(c))))
     return chain
+
+
+def ankle_of(leg: list[int], rest_pos: FloatArray) -> int | None:
+    """Index in ``leg`` (hip first) of the ankle: the first joint within `_ANKLE_REACH` of the
+    leg's far end, with a joint (the knee) between it and the hip; None when there is none."""
+    points = rest_pos[leg]
+    far = points[-1]
+    span = float(np.linalg.norm(far - points[0]))
+    if not span > 0.0:
+        return None
+    near = np.flatnonzero(np.linalg.norm(points - far, axis=1) <= _ANKLE_REACH * span)
+    index = int(near[0])
+    return index if index >= 2 else None
 
 
 def _mirrored_legs(
     skeleton: Skeleton, rest_pos: FloatArray, chain_a: list[int], chain_b: list[int]
-) -> tuple[float, int] | None:
-    """(the legs' length, how many joints of each chain come before its hip) when the two chains
-    are legs of one body: bone for bone the same lengths, mirror images across the plane between
-    their hips, three joints or more from the hip down. The hips are where the chains part: CMU's
-    `LHipJoint` sits on the pelvis, its `LeftUpLeg` at the hip. None otherwise."""
+) -> _Legs | None:
+    """The two chains as a body's legs: bone for bone the same lengths, mirror images across the
+    plane between their hips, hanging lowest with a knee above the ankle (`_hang_lowest`). The
+    hips are where the chains part: CMU's `LHipJoint` sits on the pelvis, its `LeftUpLeg` at the
+    hip. None when they are not legs."""
     if len(chain_a) != len(chain_b) or len(chain_a) < 3:
         return None
     rest = np.asarray(skeleton.rest_translations)
@@ -110,47 +152,59 @@ def _mirrored_legs(
     if total <= 0.0 or not len(parted) or len(chain_a) - int(parted[0]) < 3:
         return None  # the two chains never part, or part below the knee: not two legs
     hip = int(parted[0])
+    leg_a, leg_b = chain_a[hip:], chain_b[hip:]
     length = float(bones_a[hip + 1 :].sum())
-    normal = (rest_pos[chain_a[hip]] - rest_pos[chain_b[hip]]) / apart[hip]
-    middle = 0.5 * (rest_pos[chain_a[hip]] + rest_pos[chain_b[hip]])
-    points = rest_pos[chain_a[hip:]]
+    normal = (rest_pos[leg_a[0]] - rest_pos[leg_b[0]]) / apart[hip]
+    middle = 0.5 * (rest_pos[leg_a[0]] + rest_pos[leg_b[0]])
+    points = rest_pos[leg_a]
     mirrored = points - 2.0 * ((points - middle) @ normal)[:, None] * normal
-    if float(np.linalg.norm(mirrored - rest_pos[chain_b[hip:]], axis=1).max()) > _MIRROR_TOLERANCE * length:
+    if float(np.linalg.norm(mirrored - rest_pos[leg_b], axis=1).max()) > _MIRROR_TOLERANCE * length:
         return None
-    if not _hang_lowest(rest_pos, chain_a[hip:], chain_b[hip:], length):
+    ankle = ankle_of(leg_a, rest_pos)
+    if ankle is None or ankle != ankle_of(leg_b, rest_pos):
         return None
-    return length, hip
+    legs = _Legs(leg_a, leg_b, ankle, length)
+    return legs if _hang_lowest(rest_pos, legs) else None
 
 
-def _hang_lowest(rest_pos: FloatArray, leg_a: list[int], leg_b: list[int], length: float) -> bool:
+def _up(rest_pos: FloatArray, legs: _Legs) -> tuple[FloatArray, float]:
+    """The legs' up (ankles to hips, unit) and how far the ankles hang below the hips."""
+    hips = 0.5 * (rest_pos[legs.a[0]] + rest_pos[legs.b[0]])
+    ankles = 0.5 * (rest_pos[legs.a[legs.ankle]] + rest_pos[legs.b[legs.ankle]])
+    drop = float(np.linalg.norm(hips - ankles))
+    return ((hips - ankles) / drop if drop > 0.0 else hips - ankles), drop
+
+
+def _hang_lowest(rest_pos: FloatArray, legs: _Legs) -> bool:
     """Whether the two chains hang down from their tops (ankles at least half the leg's length
     below the hips, as legs stand in any rest pose) and no joint of the body is lower than their
     ends: arms held out in a T-pose do not hang, arms in an A-pose end above the feet."""
-    hips = 0.5 * (rest_pos[leg_a[0]] + rest_pos[leg_b[0]])
-    ankles = 0.5 * (rest_pos[leg_a[2]] + rest_pos[leg_b[2]])
-    drop = float(np.linalg.norm(hips - ankles))
-    if drop < 0.5 * length:
+    up, drop = _up(rest_pos, legs)
+    if drop < 0.5 * legs.length:
         return False
-    up = (hips - ankles) / drop
+    return _above_floor(rest_pos, legs, up) <= 0.1 * legs.length
+
+
+def _above_floor(rest_pos: FloatArray, legs: _Legs, up: FloatArray | None = None) -> float:
+    """How far the legs' lowest joint is above the body's lowest, along the legs' up."""
+    if up is None:
+        up = _up(rest_pos, legs)[0]
     heights = rest_pos @ up
-    lowest_end = min(float(heights[leg_a].min()), float(heights[leg_b].min()))
-    return bool(heights.min() >= lowest_end - 0.1 * length)
+    return float(min(heights[legs.a].min(), heights[legs.b].min()) - heights.min())
 
 
-def _sides(rest_pos: FloatArray, chain_a: list[int], chain_b: list[int]) -> float | None:
-    """> 0 when ``chain_a`` is the left leg, < 0 when the right, None when the rest pose cannot
-    tell (no toes: hip, knee and ankle only; feet that point nowhere clear)."""
-    if len(chain_a) < 4:
+def _sides(rest_pos: FloatArray, legs: _Legs) -> float | None:
+    """> 0 when ``legs.a`` is the left leg, < 0 when the right, None when the rest pose cannot
+    tell (no toes: the leg ends at its ankle; feet that point nowhere clear)."""
+    if legs.ankle == len(legs.a) - 1:
         return None
-    hips = 0.5 * (rest_pos[chain_a[0]] + rest_pos[chain_b[0]])
-    ankles = 0.5 * (rest_pos[chain_a[2]] + rest_pos[chain_b[2]])
-    up = hips - ankles
-    if not np.linalg.norm(up) > 0.0:
+    up, drop = _up(rest_pos, legs)
+    if not drop > 0.0:
         return None
-    up = up / np.linalg.norm(up)
-    toes = (rest_pos[chain_a[-1]] - rest_pos[chain_a[2]]) + (rest_pos[chain_b[-1]] - rest_pos[chain_b[2]])
+    a, b, ankle = legs.a, legs.b, legs.ankle
+    toes = (rest_pos[a[-1]] - rest_pos[a[ankle]]) + (rest_pos[b[-1]] - rest_pos[b[ankle]])
     toes = toes - (toes @ up) * up
-    facing = np.cross(rest_pos[chain_a[0]] - rest_pos[chain_b[0]], up)
+    facing = np.cross(rest_pos[a[0]] - rest_pos[b[0]], up)
     norms = float(np.linalg.norm(toes) * np.linalg.norm(facing))
     if not norms > 0.0:
         return None
@@ -179,7 +233,7 @@ def mirror_partners(skeleton: Skeleton, rest_pos: FloatArray) -> list[int] | Non
     normal = (a - b) / np.linalg.norm(a - b)
     middle = 0.5 * (a + b)
     reflected = rest_pos - 2.0 * ((rest_pos - middle) @ normal)[:, None] * normal
-    foot = leg_chain(skeleton, hips.left)[-1]
+    foot = leg_chain(skeleton, hips.left, rest_pos)[-1]
     tolerance = _PARTNER_TOLERANCE * float(np.linalg.norm(rest_pos[hips.left] - rest_pos[foot]))
     subtrees = [[joint, *skeleton.descendants(joint)] for joint in range(skeleton.joint_count)]
 

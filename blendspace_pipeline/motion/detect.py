@@ -16,7 +16,7 @@ import numpy as np
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion import stats
-from blendspace_pipeline.motion.body_shape import ShapeHips, hips_by_shape, leg_chain
+from blendspace_pipeline.motion.body_shape import ShapeHips, ankle_of, hips_by_shape, leg_chain
 from blendspace_pipeline.motion.clip import Clip, rest_positions
 from blendspace_pipeline.motion.joint_names import find_hips, split_side
 from blendspace_pipeline.motion.notes import REST_FRAME_NOTE, STILL_NOTE, held_note
@@ -263,12 +263,13 @@ def _body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
     if hips is None:
         return None
     feet = []
-    shaped = shape_hips(clip, settings)
+    rest = rest_positions(clip) if shape_hips(clip, settings) is not None else None
     for hip in hips:
         foot = _named_below(clip, hip, _FOOT_BASES)
-        leg = leg_chain(clip.skeleton, hip) if shaped is not None else []
-        if foot is None and len(leg) >= 3:
-            foot = leg[2]  # hip, knee, ankle: the shape's own reading of a leg (the toe is below)
+        if foot is None and rest is not None:  # the shape's own reading of the leg: its ankle
+            leg = leg_chain(clip.skeleton, hip, rest)
+            ankle = ankle_of(leg, rest)
+            foot = leg[ankle] if ankle is not None else None
         if foot is None:
             below = clip.skeleton.descendants(hip)
             if not below:
@@ -832,13 +833,23 @@ def knees_forward(
 
 
 def _toe_of(clip: Clip, foot: int) -> int | None:
-    """The joint the foot points to: a child named toe (or ball), else its first child that is
-    not a heel; None when the foot ends the chain (its toe is only a BVH End Site)."""
+    """The joint the foot points to: a child named toe (or ball), else its child that is not a
+    heel (of several, the one reaching farthest in the rest pose); None when the foot ends the
+    chain (its toe is only a BVH End Site)."""
     names = clip.skeleton.names
     below = [c for c in clip.skeleton.children(foot) if "heel" not in split_side(names[c])[1]]
     toes = [c for c in below if any(t in split_side(names[c])[1] for t in ("toe", "ball"))]
-    found = toes or below
-    return found[0] if found else None
+    if toes or len(below) < 2:
+        found = toes or below
+        return found[0] if found else None
+    # Names that say nothing (`Bone.012`): the child reaching farthest from the ankle in the rest
+    # pose; a heel bone listed first had been taken for the toe, and the toes then vetoed the knees.
+    rest = rest_positions(clip)
+    skeleton = clip.skeleton
+    return max(
+        below,
+        key=lambda c: float(np.linalg.norm(rest[[c, *skeleton.descendants(c)]] - rest[foot], axis=1).max()),
+    )
 
 
 def feet_forward(
@@ -1171,10 +1182,12 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
     return bool(residual[0] > 5.0 * stats.percentile(residual[1:], 99))
 
 
-# A pose counts as held when no joint moves more than this fraction of the body's extent (0.02 mm
-# on an adult): the same key evaluated again (a DCC's constant extrapolation past the last key,
-# a scene range longer than the action), not an actor standing still (mocap noise is ~1 mm).
-_HELD_TOLERANCE = 1e-5
+# A pose counts as held when no joint moves more than this fraction of the body's extent (3 um on
+# an adult; float32 storage of a held key varies it by 0.1 um): the same key evaluated again (a
+# DCC's constant extrapolation past the last key, a scene range longer than the action), not an
+# actor standing still (mocap noise is ~1 mm). A breathing idle that starts at the top of a breath
+# still loses its first few frames at 120 fps (a few um each): harmless, and said.
+_HELD_TOLERANCE = 2e-6
 
 
 def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
@@ -1243,12 +1256,15 @@ def motion_part(clip: Clip, world_pos: FloatArray, settings: RigSettings, *, res
     loses that hold as well."""
     count = clip.frame_count
     held = held_ends(world_pos)
-    first, stop = (0, count) if held is None else (held[0], count - held[1])
-    rest_frame = rest and detect_tpose_frame(clip.trimmed(first, stop), world_pos[first:stop], settings)
-    if rest_frame:
-        first += 1
-        after = held_ends(world_pos[first:stop]) if held is not None else None
-        if held is not None and after is not None and after[0]:
-            first += after[0]
-            held = (held[0] + after[0], held[1])
-    return MotionPart(first, stop, held, rest_frame)
+    if held is None:
+        return MotionPart(0, count, None, False)
+    first = held[0]
+    # The rest frame is looked for before a held end is cut: a rest frame followed by one pose held
+    # (a pose asset with its bind frame) left two frames, too few to tell, and read a 104 deg/s turn.
+    if not (rest and detect_tpose_frame(clip.trimmed(first, count), world_pos[first:], settings)):
+        return MotionPart(first, count - held[1], held, False)
+    first += 1
+    after = held_ends(world_pos[first:])
+    if after is None:  # the rest frame, then one pose held: a still pose
+        return MotionPart(first, count, None, True)
+    return MotionPart(first + after[0], count - after[1], (held[0] + after[0], after[1]), True)

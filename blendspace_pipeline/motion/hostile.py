@@ -513,3 +513,105 @@ def without_toes(clip: Clip) -> Clip:
         translations=np.ascontiguousarray(clip.translations[:, keep]),
         notes=list(clip.notes),
     )
+
+
+# (name, parent's name, rest offset in the clip's units, the joint it is listed before or None)
+Extra = tuple[str, str, tuple[float, float, float], str | None]
+
+
+def with_joints(clip: Clip, extra: list[Extra]) -> Clip:
+    """``clip`` with joints added that keep their rest offset and rotation on every frame (they
+    ride along with their parent): foot-roll heels, cloth chains, IK helpers. Each goes right
+    before the joint its fourth field names (the file order exporters write), else last."""
+    skeleton = clip.skeleton
+    names, parents = list(skeleton.names), list(skeleton.parents)
+    rest_t, rest_r = list(skeleton.rest_translations), list(skeleton.rest_rotations)
+    rotations, translations = (
+        list(np.moveaxis(clip.rotations, 1, 0)),
+        list(np.moveaxis(clip.translations, 1, 0)),
+    )
+    for name, parent, offset, before in extra:
+        at = len(names) if before is None else names.index(before)
+        parent_index = names.index(parent)
+        parents = [p + 1 if p >= at else p for p in parents]
+        names.insert(at, name)
+        parents.insert(at, parent_index if parent_index < at else parent_index + 1)
+        rest_t.insert(at, np.asarray(offset, dtype=np.float64))
+        rest_r.insert(at, quat.IDENTITY.copy())
+        rotations.insert(at, np.tile(quat.IDENTITY, (clip.frame_count, 1)))
+        translations.insert(at, np.tile(np.asarray(offset, dtype=np.float64), (clip.frame_count, 1)))
+    other = Skeleton(
+        names=tuple(names),
+        parents=tuple(parents),
+        rest_translations=np.array(rest_t),
+        rest_rotations=np.array(rest_r),
+        has_hierarchy=skeleton.has_hierarchy,
+    )
+    return replace(
+        clip,
+        skeleton=other,
+        rotations=np.ascontiguousarray(np.stack(rotations, 1)),
+        translations=np.ascontiguousarray(np.stack(translations, 1)),
+        notes=list(clip.notes),
+    )
+
+
+def heel_bones(clip: Clip) -> Clip:
+    """A foot-roll heel on each foot of the procedural rig, listed before the toe: the toe no
+    longer ends the foot's first (or only) line of descendants."""
+    return with_joints(
+        clip,
+        [(f"{side}Heel", f"{side}Foot", (0.0, -0.06, -0.05), f"{side}Toe") for side in ("Left", "Right")],
+    )
+
+
+def long_coat(clip: Clip, hem: float = 0.03, segments: int = 3) -> Clip:
+    """Four cloth chains hanging from the procedural rig's hips to ``hem`` metres above the floor,
+    front and back on each side: mirror images of each other, longer than the legs."""
+    top = 0.10  # the waist, above the hips
+    floor = float(np.min(_rest_heights(clip)))
+    step = (top - (floor + hem)) / segments
+    extra: list[Extra] = []
+    for key, (x, z) in {
+        "FL": (0.12, 0.10),
+        "FR": (-0.12, 0.10),
+        "BL": (0.12, -0.10),
+        "BR": (-0.12, -0.10),
+    }.items():
+        extra.append((f"coat{key}0", "Hips", (x, top, z), None))
+        extra += [(f"coat{key}{i + 1}", f"coat{key}{i}", (0.0, -step, 0.0), None) for i in range(segments)]
+    return with_joints(clip, extra)
+
+
+def _rest_heights(clip: Clip) -> FloatArray:
+    from blendspace_pipeline.motion.clip import rest_positions
+
+    heights: FloatArray = rest_positions(clip)[:, 1]
+    return heights
+
+
+def thigh_twist(clip: Clip) -> Clip:
+    """A twist joint halfway down each thigh of the procedural rig (DAZ's ThighBend / ThighTwist):
+    the knee is no longer the second joint of the leg. Positions are unchanged."""
+    skeleton = clip.skeleton
+    out = clip
+    for side in ("Left", "Right"):
+        names = out.skeleton.names
+        knee = names.index(f"{side}Leg")
+        half = out.skeleton.rest_translations[knee] / 2.0
+        out = with_joints(out, [(f"{side}ThighTwist", f"{side}UpLeg", tuple(half), f"{side}Leg")])
+        names = out.skeleton.names
+        knee, twist = names.index(f"{side}Leg"), names.index(f"{side}ThighTwist")
+        parents = list(out.skeleton.parents)
+        parents[knee] = twist
+        rest_t = out.skeleton.rest_translations.copy()
+        rest_t[knee] = half
+        translations = out.translations.copy()
+        translations[:, knee] = translations[:, knee] - half
+        out = replace(
+            out,
+            skeleton=replace(out.skeleton, parents=tuple(parents), rest_translations=rest_t),
+            translations=translations,
+        )
+    assert out.skeleton.joint_count == skeleton.joint_count + 2
+    return out

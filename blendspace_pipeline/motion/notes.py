@@ -19,4 +19,7 @@ def held_note(leading: int, trailing: int, fps: float) -> str:
         for where, frames in (("first", leading), ("last", trailing))
         if frames
     ]
-    return f"{HELD_MARK} (each repeats the pose next to it: a scene range longer than the action): {', '.join(parts)}"
+    return (
+        f"{HELD_MARK} (each repeats the pose next to it, as a scene range longer than the action "
+        f"leaves them): {', '.join(parts)}"
+    )

@@ -24,7 +24,7 @@ from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.root_motion import decompose, ground_basis
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.file_names import safe_file_stem
-from blendspace_pipeline.motion.joint_names import letter_partner, split_side
+from blendspace_pipeline.motion.joint_names import find_hips, letter_partner, split_side
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 _TRAILING_INDEX = re.compile(r"_\d+$")
@@ -109,17 +109,28 @@ def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None)
             f"no mirror partner for joint(s) {', '.join(sorted(unpaired)[:6])}; "
             "set `skeleton.mirror: {left: TOKEN, right: TOKEN}` in the manifest"
         )
-    if partner == list(range(len(names))) and skeleton.has_hierarchy:
-        # No name says left or right (`joint_07`, `Bone.007`): every joint kept its own motion, and
-        # a mirrored walk came out with its legs crossed. The rest pose's symmetry pairs them.
+    if skeleton.has_hierarchy and find_hips(skeleton) is None:
+        # No name says which leg is which (`joint_07`, `Bone.007`; perhaps a few helper bones named
+        # `ik_target_L`): every unnamed joint kept its own motion, and a mirrored walk came out with
+        # its legs crossed. The rest pose's symmetry pairs them; a side in a name still decides.
         by_shape = mirror_partners(skeleton, _rest_positions(skeleton))
-        if by_shape is None:
+        if by_shape is None and partner == list(range(len(names))):
             raise IncompatibleClips(
                 "no joint name says left or right, and the rest pose is no mirror image of itself "
                 "across the hips: no joint can be paired with its mirror partner; name the joints' "
                 "sides (e.g. LeftUpLeg / RightUpLeg) to mirror this rig"
             )
-        return by_shape
+        if by_shape is not None:
+            merged = [
+                mine if mine != joint else theirs
+                for joint, (mine, theirs) in enumerate(zip(partner, by_shape, strict=True))
+            ]
+            if any(merged[merged[joint]] != joint for joint in range(len(merged))):
+                raise IncompatibleClips(
+                    "the joints' names and the rest pose's symmetry pair them differently; name the "
+                    "joints' sides (e.g. LeftUpLeg / RightUpLeg) to mirror this rig"
+                )
+            return merged
     return partner
 
 

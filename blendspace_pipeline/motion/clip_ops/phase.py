@@ -25,10 +25,12 @@ from blendspace_pipeline.motion import stats
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics, rest_positions
 from blendspace_pipeline.motion.detect import (
     RigSettings,
+    body_joints,
     hip_pair,
     resolve_facing,
     resolve_up,
     rig_memo,
+    shape_hips,
     up_vector,
 )
 from blendspace_pipeline.motion.joint_names import split_side
@@ -83,6 +85,9 @@ def _foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
     hips = hip_pair(clip, settings) if clip.skeleton.has_hierarchy else None
     if hips is None:
         return None
+    if shape_hips(clip, settings) is not None:  # legs by the skeleton's shape: its ankles
+        body = body_joints(clip, settings)
+        return body.feet if body is not None else None
     skeleton = clip.skeleton
     feet = []
     for hip in hips:
