@@ -77,6 +77,16 @@ for job in json.loads(sys.argv[1]):
         bpy.ops.import_scene.gltf(filepath=source)
     else:
         bpy.ops.wm.usd_import(filepath=source)
+    if job.get("rename"):  # names that say nothing, as a hand-built rig's: Bone, Bone.001, ...
+        (armature,) = [o for o in bpy.data.objects if o.type == "ARMATURE"]
+        bones = list(armature.data.bones)
+        for i, bone in enumerate(bones):
+            bone.name = f"tmp{i}"
+        for i, bone in enumerate(bones):
+            bone.name = "Bone" if i == 0 else f"Bone.{i:03d}"
+    if job["kind"] == "glb":
+        bpy.ops.export_scene.gltf(filepath=job["out"], export_format="GLB")
+        continue
     if job["kind"] == "fbx":
         # The take spans the clip, not the scene's default 250 frames (which would hold the last pose).
         # With "scene_end", the scene ends there instead, as an artist's scene often does.
@@ -163,6 +173,34 @@ def test_blender_fbx_of_a_scene_longer_than_the_walk_measures_the_walk(
         assert measured.features["speed"] == pytest.approx(1.4, abs=0.02), time_range
         assert measured.range_used is not None and measured.range_used[1] <= 2.0 + 1.5 / 24
     assert any(note.startswith(HELD_MARK) for note in measure(clip, RigSettings()).notes)
+
+
+@pytest.mark.parametrize(
+    "spec",
+    [
+        GaitSpec("walk_left", speed=1.4, turn_rate=30.0, duration=2.0),
+        GaitSpec("strafe_right", speed=1.2, direction=-90.0, duration=2.0, stride_length=1.0),
+    ],
+    ids=lambda s: s.name,
+)
+def test_blender_glb_with_generic_bone_names_measures_its_known_motion(
+    tmp_path: Path, blender: None, spec: GaitSpec
+) -> None:
+    """A hand-built Blender rig's names (`Bone`, `Bone.001`...) say nothing of left and right: the
+    legs are found by the skeleton's shape. Before, the facing came from the root bone's axis,
+    with `root` and `facing` guesses (and 90 deg off where the root bone points forward)."""
+    bvh = tmp_path / "walk.bvh"
+    write_bvh_clip(generate(spec), bvh)
+    out = tmp_path / "walk.glb"
+    _run_blender([{"kind": "glb", "source": str(bvh), "out": str(out), "rename": True}])
+    (clip,) = read_clips(out)
+    assert "Bone.001" in clip.skeleton.names
+    measured = measure(clip, RigSettings())
+    assert measured.facing == "hip line (hips by the skeleton's shape)"
+    assert not measured.guesses, measured.guesses
+    assert measured.features["speed"] == pytest.approx(spec.signed_speed, abs=0.02)
+    assert measured.features["turn_rate"] == pytest.approx(spec.turn_rate, abs=1.0)
+    assert measured.features["direction"] == pytest.approx(spec.direction, abs=1.0)
 
 
 @pytest.mark.parametrize("take", ["131_01", "131_02"])
