@@ -73,7 +73,7 @@ class InputError(Exception):
             shown.append(other.render() if other.hint not in hints else replace(other, hint=None).render())
             hints.add(other.hint)
         if len(self.more) > MORE_SHOWN:
-            shown.append(f"... and {len(self.more) - MORE_SHOWN} more like these")
+            shown.append(f"... and {len(self.more) - MORE_SHOWN} more")
         return "\n".join([text, *shown])
 
 

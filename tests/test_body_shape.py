@@ -108,7 +108,7 @@ def test_when_nothing_tells_the_sides_it_is_a_guess() -> None:
 def test_arms_are_not_taken_for_legs() -> None:
     """Arms mirror each other too, but hang from the chest, further from the root."""
     clip = renamed(generate(GAITS[0]), "anonymous")
-    found = hips_by_shape(clip.skeleton, rest_positions(clip))
+    found = hips_by_shape(clip.skeleton, rest_positions(clip.skeleton))
     assert found is not None and found.sided
     named = generate(GAITS[0]).skeleton.names
     assert (named[found.left], named[found.right]) == ("LeftUpLeg", "RightUpLeg")
@@ -198,7 +198,7 @@ def test_an_asymmetric_nameless_rig_is_not_mirrored_blindly() -> None:
         rotations=clip.rotations[:, keep],
         translations=clip.translations[:, keep],
     )
-    assert hips_by_shape(lopsided.skeleton, rest_positions(lopsided)) is None
+    assert hips_by_shape(lopsided.skeleton, rest_positions(lopsided.skeleton)) is None
     with pytest.raises(IncompatibleClips, match="no joint name says left or right"):
         mirror_pairs(lopsided.skeleton)
 
@@ -221,7 +221,7 @@ def test_rigs_that_look_like_other_legs_measure_as_named(
     nameless = measure(renamed(clip, "blender"), SETTINGS)
     assert nameless.facing == SHAPE and not nameless.guesses, nameless.guesses
     _same(nameless.features, measure(clip, SETTINGS).features)
-    hips = hips_by_shape(renamed(clip, "blender").skeleton, rest_positions(clip))
+    hips = hips_by_shape(renamed(clip, "blender").skeleton, rest_positions(clip.skeleton))
     assert hips is not None
     assert (clip.skeleton.names[hips.left], clip.skeleton.names[hips.right]) == ("LeftUpLeg", "RightUpLeg")
 
@@ -251,3 +251,34 @@ def test_real_cmu_takes_renamed_pick_the_same_auto_range(take: str) -> None:
     assert nameless.range_used == named.range_used
     assert nameless.partial_stride == named.partial_stride
     _same(nameless.features, named.features)
+
+
+def test_without_toes_the_file_order_names_the_feet_and_says_so() -> None:
+    """No toes and the right leg listed first: each clip's knees decide its facing, but the rig's
+    feet keep the file's order for every clip (contacts and markers stay consistent across the
+    set), and the note says which foot is called left."""
+    clip = renamed(without_toes(on_other_skeleton(generate(GAITS[0]), "reordered")), "anonymous")
+    measured = measure(clip, SETTINGS)
+    [note] = [n for n in measured.notes if n.startswith("hips found by the skeleton's shape")]
+    assert "told apart by the knees over the take" in note
+    assert "foot contacts and markers name" in note and "as the file lists it first" in note
+    _same(measured.features, measure(generate(GAITS[0]), SETTINGS).features)
+
+
+def test_a_few_sided_names_on_an_asymmetric_nameless_rig_are_not_mirrored() -> None:
+    """IK helpers named by side, every other joint nameless, and a prop on one hand: the shape
+    cannot pair the legs and the names pair two joints. Mirroring is refused, not baked with
+    every leg joint keeping its own motion."""
+    clip = with_joints(
+        generate(GAITS[0]),
+        [
+            ("ik_target_L", "Hips", (0.3, -0.9, 0.2), None),
+            ("ik_target_R", "Hips", (-0.3, -0.9, 0.2), None),
+            ("prop", "LeftHand", (0.1, 0.0, 0.0), None),
+            ("prop_tip", "prop", (0.3, 0.0, 0.0), None),
+        ],
+    )
+    names = [n if n.startswith("ik_target") else f"Bone.{i:03d}" for i, n in enumerate(clip.skeleton.names)]
+    lopsided = replace(clip.skeleton, names=tuple(names))
+    with pytest.raises(IncompatibleClips, match="no joint name says left or right"):
+        mirror_pairs(lopsided)

@@ -164,8 +164,16 @@ def test_every_unreadable_clip_is_named_at_once(tmp_path: Path) -> None:
     bvh = [line for line in lines if "truncated BVH" in line]
     assert len(bvh) == MORE_SHOWN + 1 and bvh[0].startswith(str(tmp_path / "clips" / "bad00.bvh") + ":3: ")
     assert sum("hint: re-export the clip as BVH" in line for line in lines) == 1
-    assert lines[-1] == "... and 3 more like these"  # broken.glb, the 23rd error, among them
+    assert lines[-1] == "... and 3 more"  # broken.glb, the 24th error, among them
     assert not (tmp_path / "build").exists()
+    # Machine formats carry every one of them, as findings.
+    for command in ("build", "check"):
+        result = _cli(command, str(manifest), "--format", "json")
+        assert result.returncode == 2, result.stderr
+        found = json.loads(result.stdout)["diagnostics"]
+        assert len(found) == MORE_SHOWN + 4
+        assert {d["rule"] for d in found} == {"invalid-input"}
+        assert any("broken.glb" in d["message"] for d in found)
 
 
 def test_unsupported_and_missing_clips_are_exit_2(tmp_path: Path) -> None:

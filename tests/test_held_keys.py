@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_fixes import AXES, DRAFT
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.exporters import to_engine
@@ -23,7 +24,7 @@ from blendspace_pipeline.motion.clip import forward_kinematics
 from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings, held_ends
 from blendspace_pipeline.motion.hostile import HostileSpec, held_keys, still_pose, take
-from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.measure import measure, part_options
 from blendspace_pipeline.motion.notes import HELD_MARK, REST_FRAME_NOTE, STILL_NOTE
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
@@ -60,8 +61,14 @@ def test_held_keys_measure_as_the_take_without_them(spec: GaitSpec, hold: tuple,
         assert held.frames == clip.frame_count
         assert held.range_used == pytest.approx((lead / fps, (lead + clip.frame_count - 1) / fps))
         [note] = [n for n in held.notes if n.startswith(HELD_MARK)]
-        for where, count in (("first", lead), ("last", tail)):
-            assert (f"the {where} {count} frame" in note) == bool(count), note
+        total = lead + clip.frame_count + tail
+        spans = [(0, lead), (lead + clip.frame_count, total)]
+        said = [
+            f"{b - a} frame{'s' if b - a != 1 else ''} at {a / fps:.2f}-{(b - 1) / fps:.2f} s"
+            for a, b in spans
+            if b > a
+        ]
+        assert note.endswith(": " + ", ".join(said)), note
         assert not held.guesses
         # The frames blend quality plays and generated clips are made of: the same ones.
         part = measured_part(padded, SETTINGS)
@@ -101,8 +108,9 @@ def test_a_take_standing_still_after_its_rest_frame_loses_the_stand_too() -> Non
     assert REST_FRAME_NOTE in measured.notes
     [note] = [n for n in measured.notes if n.startswith(HELD_MARK)]
     # The stand's 15 frames and the walk's first frame (it starts from the standing pose) are
-    # one pose: 15 go, and as many at the end.
-    assert "the first 15 frames (0.50 s), the last 15 frames (0.50 s)" in note
+    # one pose: 15 go after the rest frame, and as many at the end.
+    end = (whole.frame_count - 1) / 30.0
+    assert note.endswith(f": 15 frames at 0.03-0.50 s, 15 frames at {end - 14 / 30:.2f}-{end:.2f} s"), note
     assert measured.frames == whole.frame_count - 1 - 15 - 15
 
 
@@ -191,3 +199,41 @@ def test_a_slow_breath_loses_at_most_a_few_frames() -> None:
     )
     held = held_ends(forward_kinematics(replace(idle, rotations=rotations))[1])
     assert held is not None and held[0] <= 10 and held[1] <= 10
+
+
+def test_a_stated_range_is_measured_as_stated() -> None:
+    """A `range:` the manifest states keeps the held keys inside it (an animator's walk start
+    stands before it walks): only a rest frame at the take's start still goes, as before."""
+    clip = held_keys(generate(GAITS[0]), 0, 60)
+    stated = measure(clip, SETTINGS, (0.0, clip.duration))
+    assert not any(n.startswith(HELD_MARK) for n in stated.notes)
+    assert stated.frames == clip.frame_count
+    assert part_options((0.0, 1.0)) == {"rest": True, "held": False}
+    assert part_options((0.5, 1.0)) == {"rest": False, "held": False}
+    assert part_options(None) == {"rest": True, "held": True}
+
+
+def test_a_mirrored_clip_is_made_of_the_frames_its_source_was_measured_on(tmp_path: Path) -> None:
+    """The mirror fix read the source whole: a turn in place with 2 s of its last pose held made a
+    mirrored clip with the hold in it, while blends and straightened clips left it out."""
+    (tmp_path / "clips").mkdir()
+    for spec in DRAFT:
+        clip = generate(spec)
+        if spec.name == "turn_in_place_left":
+            clip = held_keys(clip, 0, 60)
+        write_bvh_clip(clip, tmp_path / "clips" / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}]\n" + AXES,
+        encoding="utf-8",
+    )
+    assert main(["build", str(manifest), "--out", str(tmp_path / "out")]) in (0, 1)
+    doc = json.loads((tmp_path / "out" / "loco.blendspace.json").read_text(encoding="utf-8"))
+    by_name = {s["name"]: s for s in doc["samples"]}
+    mirror = by_name["turn_in_place_right"]  # the mirror of turn_in_place_left
+    assert mirror["generated"] and mirror["fix"] == "missing-opposite"
+    assert by_name["turn_in_place_left"]["clip"]["frames"] == 61
+    [made] = read_clips(tmp_path / "out" / mirror["source"])
+    assert made.frame_count == 61  # the file the engine plays: no hold in it
+    assert mirror["features"]["turn_rate"] == pytest.approx(-90.0, abs=0.5)

@@ -178,13 +178,14 @@ def input_error_diagnostic(error: InputError, manifest: Path) -> Diagnostic:
     )
 
 
-def report_input_error(fmt: str, error: InputError, manifest: Path) -> Diagnostic | None:
+def report_input_error(fmt: str, error: InputError, manifest: Path) -> list[Diagnostic]:
     """Text mode prints the error as the CLI always has (`path:line:col: message`, hint) on
-    stderr; the other formats get a diagnostic to put into their document."""
+    stderr and returns nothing; the other formats get a diagnostic per error (the error and every
+    one it carries in `more`: each unreadable clip) to put into their document."""
     if fmt == "text":
         sys.stderr.write(f"{error.render()}\n")
-        return None
-    return input_error_diagnostic(error, manifest)
+        return []
+    return [input_error_diagnostic(each, manifest) for each in (error, *error.more)]
 
 
 def _spaces(space: BlendSpace) -> Iterator[BlendSpace]:

@@ -75,12 +75,12 @@ def _run(args: argparse.Namespace, inputs: list[Path], outputs: list[Path]) -> i
         except InputError as error:
             worst = EXIT_INPUT
             reported = report_input_error(args.format, error, manifest)
-            if reported is None:
+            if not reported:
                 continue
             if args.format == "sarif":
-                sarif.append(reported)
+                sarif += reported
             else:
-                emit(args.format, [reported], "", extra={"manifest": str(manifest), "outputs": []})
+                emit(args.format, reported, "", extra={"manifest": str(manifest), "outputs": []})
             continue
         diagnostics = result.space.all_diagnostics()
         worst = max(worst, exit_code(diagnostics, args.strict))

@@ -76,9 +76,7 @@ def _run(args: argparse.Namespace, inputs: list[Path]) -> int:
         except InputError as error:
             invalid += 1
             worst = EXIT_INPUT
-            reported = report_input_error(args.format, error, manifest)
-            if reported is not None:
-                everything.append(reported)
+            everything += report_input_error(args.format, error, manifest)
             continue
         spaces.append(space)
         inputs += input_files(space) + stamp.rule_files(space)

@@ -30,9 +30,9 @@ _SIDES_COS = 0.5  # the toes tell the sides when they point within 60 deg of one
 # The ankle: the first joint of the leg this close to its far end (a fraction of the hip's
 # distance to it): a foot is a fifth of a leg, a knee half of it, a thigh twist joint more.
 _ANKLE_REACH = 0.25
-# Pairs whose lowest points lie within this fraction of their length of each other count as
-# reaching the floor alike (the nearest to the root then wins); a coat's hem 3 cm above the floor
-# does not reach it.
+# Pairs are ranked first by how far their lowest joint is above the body's lowest, in steps of
+# this fraction of their length (legs reaching the floor are in the first step, the nearest to
+# the root then wins); a coat's hem 3 cm above the floor is in a later step.
 _FLOOR_STEP = 0.02
 
 
@@ -70,27 +70,82 @@ def hips_by_shape(skeleton: Skeleton, rest_pos: FloatArray) -> ShapeHips | None:
     )
 
 
+class _Tree:
+    """A skeleton's hierarchy walked once: children, subtrees and heights of every joint (a rig
+    with hair or cloth has hundreds of joints; `Skeleton.children` scans them all per call)."""
+
+    def __init__(self, skeleton: Skeleton) -> None:
+        count = skeleton.joint_count
+        self.children: list[list[int]] = [[] for _ in range(count)]
+        for joint, parent in enumerate(skeleton.parents):
+            if parent >= 0:
+                self.children[parent].append(joint)
+        self.subtree: list[list[int]] = [[] for _ in range(count)]
+        self.height = [1] * count
+        self.depth = _depths(skeleton.parents)
+        for joint in reversed(range(count)):  # children come after their parents
+            below = [joint]
+            for child in self.children[joint]:
+                below += self.subtree[child]
+                self.height[joint] = max(self.height[joint], 1 + self.height[child])
+            self.subtree[joint] = below
+
+    def chain(self, top: int, rest_pos: FloatArray) -> list[int]:
+        """``top`` and down its deepest line of descendants; on a tie, the child whose subtree
+        reaches farthest from ``top`` (a foot's toe, not the heel bone beside it)."""
+        chain = [top]
+        while children := self.children[chain[-1]]:
+            tallest = max(self.height[c] for c in children)
+            tied = [c for c in children if self.height[c] == tallest]
+            if len(tied) > 1:
+                reach = [
+                    float(np.linalg.norm(rest_pos[self.subtree[c]] - rest_pos[top], axis=1).max())
+                    for c in tied
+                ]
+                tied = [tied[int(np.argmax(reach))]]
+            chain.append(tied[0])
+        return chain
+
+
 def find_legs(skeleton: Skeleton, rest_pos: FloatArray) -> _Legs | None:
     if not skeleton.has_hierarchy:
         return None
-    depth = _depths(skeleton.parents)
+    tree = _Tree(skeleton)
     found: list[tuple[_Legs, float]] = []
-    for parent in range(skeleton.joint_count):
-        children = skeleton.children(parent)
-        for i, a in enumerate(children):
-            chain_a = leg_chain(skeleton, a, rest_pos)
-            for b in children[i + 1 :]:
-                legs = _mirrored_legs(skeleton, rest_pos, chain_a, leg_chain(skeleton, b, rest_pos))
-                if legs is not None:
-                    found.append((legs, _above_floor(rest_pos, legs)))
+    for children in tree.children:
+        # Each child's chain once; only chains of one length (three joints or more) that hang
+        # down to the body's lowest point can pair (hair and cloth chains by the hundred do not).
+        by_length: dict[int, list[list[int]]] = {}
+        for child in children:
+            if tree.height[child] >= 3:
+                chain = tree.chain(child, rest_pos)
+                if _reaches_floor(rest_pos, chain):
+                    by_length.setdefault(len(chain), []).append(chain)
+        for chains in by_length.values():
+            for i, chain_a in enumerate(chains):
+                for chain_b in chains[i + 1 :]:
+                    legs = _mirrored_legs(skeleton, rest_pos, chain_a, chain_b)
+                    if legs is not None:
+                        found.append((legs, _above_floor(rest_pos, legs)))
     if not found:
         return None
 
     def rank(item: tuple[_Legs, float]) -> tuple[int, int, float]:
         legs, gap = item
-        return int(gap / (_FLOOR_STEP * legs.length)), depth[legs.a[0]], -legs.length
+        return int(gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], -legs.length
 
     return min(found, key=rank)[0]
+
+
+def _reaches_floor(rest_pos: FloatArray, chain: list[int]) -> bool:
+    """Whether ``chain`` ends within `_MIRROR_TOLERANCE` of its length of the body's lowest
+    point, along the way it hangs (top to end): what every leg does in a rest pose."""
+    drop = rest_pos[chain[0]] - rest_pos[chain[-1]]
+    length = float(np.linalg.norm(drop))
+    if not length > 0.0:
+        return False
+    heights = rest_pos @ (drop / length)
+    return bool(heights[chain[-1]] - heights.min() <= _MIRROR_TOLERANCE * length)
 
 
 def _depths(parents: tuple[int, ...] | list[int]) -> list[int]:
@@ -101,23 +156,8 @@ def _depths(parents: tuple[int, ...] | list[int]) -> list[int]:
 
 
 def leg_chain(skeleton: Skeleton, top: int, rest_pos: FloatArray) -> list[int]:
-    """``top`` and down its deepest line of descendants; on a tie, the child whose subtree reaches
-    farthest from ``top`` (a foot's toe, not the heel bone beside it)."""
-    heights: dict[int, int] = {}
-
-    def height(joint: int) -> int:
-        if joint not in heights:
-            heights[joint] = 1 + max((height(c) for c in skeleton.children(joint)), default=0)
-        return heights[joint]
-
-    def reach(joint: int) -> float:
-        below = [joint, *skeleton.descendants(joint)]
-        return float(np.linalg.norm(rest_pos[below] - rest_pos[top], axis=1).max())
-
-    chain = [top]
-    while children := skeleton.children(chain[-1]):
-        chain.append(max(children, key=lambda c: (height(c), reach(c))))
-    return chain
+    """``top`` and down its deepest line of descendants (see `_Tree.chain`)."""
+    return _Tree(skeleton).chain(top, rest_pos)
 
 
 def ankle_of(leg: list[int], rest_pos: FloatArray) -> int | None:
@@ -229,45 +269,56 @@ def mirror_partners(skeleton: Skeleton, rest_pos: FloatArray) -> list[int] | Non
     hips = hips_by_shape(skeleton, rest_pos)
     if hips is None:
         return None
+    tree = _Tree(skeleton)
     a, b = rest_pos[hips.left], rest_pos[hips.right]
     normal = (a - b) / np.linalg.norm(a - b)
     middle = 0.5 * (a + b)
     reflected = rest_pos - 2.0 * ((rest_pos - middle) @ normal)[:, None] * normal
-    foot = leg_chain(skeleton, hips.left, rest_pos)[-1]
+    foot = tree.chain(hips.left, rest_pos)[-1]
     tolerance = _PARTNER_TOLERANCE * float(np.linalg.norm(rest_pos[hips.left] - rest_pos[foot]))
-    subtrees = [[joint, *skeleton.descendants(joint)] for joint in range(skeleton.joint_count)]
 
     def distance(joint: int, other: int) -> float:
-        if len(subtrees[joint]) != len(subtrees[other]):
+        mine, theirs = tree.subtree[joint], tree.subtree[other]
+        if len(mine) != len(theirs):
             return np.inf
-        return _subtree_distance(reflected[subtrees[joint]], rest_pos[subtrees[other]])
+        return _subtree_distance(reflected[mine], rest_pos[theirs])
 
     partner = [-1] * skeleton.joint_count
 
     def pair(mine: list[int], theirs: list[int]) -> bool:
-        if mine != theirs and len(mine) == len(theirs):
-            gaps = [distance(j, k) for j, k in zip(mine, theirs, strict=True)]
-            if max(gaps) <= tolerance:
-                for j, k in zip(mine, theirs, strict=True):
-                    partner[j] = k
-                return True
+        same_order = mine != theirs and len(mine) == len(theirs)
+        if same_order and all(distance(j, k) <= tolerance for j, k in zip(mine, theirs, strict=True)):
+            for j, k in zip(mine, theirs, strict=True):
+                partner[j] = k
+            return True
+        if not theirs:
+            return not mine
+        tops = rest_pos[theirs]
         for joint in mine:
-            gaps = [distance(joint, other) for other in theirs]
+            # Only the joints whose own position mirrors this one's can hold a mirrored subtree.
+            near = np.flatnonzero(np.linalg.norm(tops - reflected[joint], axis=1) <= tolerance)
+            gaps = [distance(joint, theirs[i]) for i in near]
             if not gaps or min(gaps) > tolerance:
                 return False
-            partner[joint] = theirs[int(np.argmin(gaps))]
+            partner[joint] = theirs[int(near[int(np.argmin(gaps))])]
         return True
 
-    if not pair(*[[j for j, p in enumerate(skeleton.parents) if p < 0]] * 2):
+    roots = [joint for joint, parent in enumerate(skeleton.parents) if parent < 0]
+    if not pair(roots, roots):
         return None
     for joint in range(skeleton.joint_count):
-        children = skeleton.children(joint)
-        if children and not pair(children, skeleton.children(partner[joint])):
+        children = tree.children[joint]
+        if children and not pair(children, tree.children[partner[joint]]):
             return None
     return partner if all(partner[partner[joint]] == joint for joint in range(len(partner))) else None
 
 
 def _subtree_distance(mine: FloatArray, theirs: FloatArray) -> float:
     """The largest distance from a point of either set to the nearest point of the other."""
+    if len(mine) * len(theirs) > 4096:  # a pelvis's or a head's subtree on a rig with hair or cloth
+        from scipy.spatial import cKDTree
+
+        there, here = cKDTree(theirs).query(mine)[0], cKDTree(mine).query(theirs)[0]
+        return float(max(there.max(), here.max()))
     gaps = np.linalg.norm(mine[:, None, :] - theirs[None, :, :], axis=2)
     return float(max(gaps.min(axis=1).max(), gaps.min(axis=0).max()))

@@ -321,14 +321,15 @@ def _work(count: int, frames: int, widest: int) -> _Work:
     return work
 
 
-def rest_positions(clip: Clip) -> FloatArray:
-    """World joint positions of ``clip``'s rest pose (J, 3)."""
-    skeleton = clip.skeleton
-    rest = replace(
-        clip,
-        rotations=skeleton.rest_rotations[None].copy(),
-        translations=skeleton.rest_translations[None].copy(),
-        notes=[],
+def rest_positions(skeleton: Skeleton) -> FloatArray:
+    """World joint positions of ``skeleton``'s rest pose (J, 3)."""
+    rest = Clip(
+        "rest",
+        Path(),
+        skeleton,
+        skeleton.rest_rotations[None].copy(),
+        skeleton.rest_translations[None].copy(),
+        30.0,
     )
     positions: FloatArray = forward_kinematics(rest)[1][0]
     return positions

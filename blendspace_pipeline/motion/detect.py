@@ -182,7 +182,9 @@ def shape_hips(clip: Clip, settings: RigSettings) -> ShapeHips | None:
     """The hips by the skeleton's shape (`body_shape`), when no joint names say left and right."""
     if not clip.skeleton.has_hierarchy or find_hips(clip.skeleton) is not None:
         return None
-    return rig_memo("shape_hips", clip, settings, lambda: hips_by_shape(clip.skeleton, rest_positions(clip)))
+    return rig_memo(
+        "shape_hips", clip, settings, lambda: hips_by_shape(clip.skeleton, rest_positions(clip.skeleton))
+    )
 
 
 def _two_hips(clip: Clip, left: int, right: int) -> tuple[int, int]:
@@ -263,7 +265,7 @@ def _body_joints(clip: Clip, settings: RigSettings) -> BodyJoints | None:
     if hips is None:
         return None
     feet = []
-    rest = rest_positions(clip) if shape_hips(clip, settings) is not None else None
+    rest = rest_positions(clip.skeleton) if shape_hips(clip, settings) is not None else None
     for hip in hips:
         foot = _named_below(clip, hip, _FOOT_BASES)
         if foot is None and rest is not None:  # the shape's own reading of the leg: its ankle
@@ -726,6 +728,13 @@ def _shape_facing(clip: Clip, up: FloatArray, shaped: ShapeHips, legs: LegsSay, 
         f"hips found by the skeleton's shape (no joint names say left and right): {names[left]} the left, "
         f"{names[right]} the right" + (f", told apart by {by}" if by and not guess_evidence else "")
     )
+    if not shaped.sided:
+        # The rig's order stands for every clip (each clip's knees decide its own facing only):
+        # foot contacts and sync markers say left for the leg the file lists first.
+        note += (
+            f"; foot contacts and markers name {names[shaped.left]}'s foot left, as the file lists it "
+            "first (the rest pose has no toes to tell)"
+        )
     guess = None
     if guess_evidence:
         guess = DetectionGuess(
@@ -832,7 +841,7 @@ def knees_forward(
     return _along_ground(total, up) if found else None
 
 
-def _toe_of(clip: Clip, foot: int) -> int | None:
+def toe_of(clip: Clip, foot: int) -> int | None:
     """The joint the foot points to: a child named toe (or ball), else its child that is not a
     heel (of several, the one reaching farthest in the rest pose); None when the foot ends the
     chain (its toe is only a BVH End Site)."""
@@ -844,7 +853,7 @@ def _toe_of(clip: Clip, foot: int) -> int | None:
         return found[0] if found else None
     # Names that say nothing (`Bone.012`): the child reaching farthest from the ankle in the rest
     # pose; a heel bone listed first had been taken for the toe, and the toes then vetoed the knees.
-    rest = rest_positions(clip)
+    rest = rest_positions(clip.skeleton)
     skeleton = clip.skeleton
     return max(
         below,
@@ -860,7 +869,7 @@ def feet_forward(
     body = body_joints(clip, settings)
     if body is None or body.feet[0] == body.feet[1]:
         return None
-    toes = [_toe_of(clip, foot) for foot in body.feet]
+    toes = [toe_of(clip, foot) for foot in body.feet]
     if toes[0] is None or toes[1] is None:
         return None
     total = sum(world_pos[:, toe] - world_pos[:, foot] for toe, foot in zip(toes, body.feet, strict=True))
@@ -1199,7 +1208,9 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
     Blender exports the scene's frame range, and a 100-frame walk in a 250-frame scene ends in
     4 s of its last pose held; a walk read 40 % slow without a word, and `range: auto` kept 2 s
     of the hold. Even two frames held at each end of a 2 s take at 24 fps read it 8 % slow, so
-    every held frame goes (a frame moves further than the tolerance on any moving take)."""
+    every held frame goes. A locomotion frame moves far more than the tolerance; the slowest
+    motion (an idle's breath at its turning point, at 120 fps) can stay within it for a few
+    frames, and those go too (harmless: they hardly move)."""
     count = len(world_pos)
     if count < 3:
         return 0, 0
@@ -1227,44 +1238,60 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
 
 @dataclass(frozen=True)
 class MotionPart:
-    """The frames of a take that `measure` reads: ``first`` to ``stop`` (exclusive), after keys
-    held at either end (``held``: frames left out at the start and at the end; None when every
-    frame holds one pose) and a leading rest/T-pose frame (``rest_frame``) are left out."""
+    """The frames of a take that `measure` reads: ``first`` to ``stop`` (exclusive), after held
+    keys (``held``: the (first, stop) frame spans left out that repeat their neighbour's pose) and
+    a leading rest/T-pose frame (``rest_frame``) are left out. ``still``: every frame measured
+    holds one pose (nothing left out for it)."""
 
     first: int
     stop: int
-    held: tuple[int, int] | None
-    rest_frame: bool
+    held: tuple[tuple[int, int], ...] = ()
+    rest_frame: bool = False
+    still: bool = False
 
     def notes(self, fps: float) -> list[str]:
-        notes = []
-        if self.held is None:
-            notes.append(STILL_NOTE)
-        elif any(self.held):
-            notes.append(held_note(*self.held, fps))
+        notes = [STILL_NOTE] if self.still else []
+        if self.held:
+            notes.append(held_note(self.held, fps))
         if self.rest_frame:
             notes.append(REST_FRAME_NOTE)
         return notes
 
 
-def motion_part(clip: Clip, world_pos: FloatArray, settings: RigSettings, *, rest: bool = True) -> MotionPart:
+def motion_part(
+    clip: Clip, world_pos: FloatArray, settings: RigSettings, *, rest: bool = True, held: bool = True
+) -> MotionPart:
     """Which frames of ``clip`` (posed as ``world_pos``) hold its motion (see `MotionPart`);
-    ``rest=False``: no rest frame is looked for (a `range:` that starts inside the take).
+    ``rest=False``: no rest frame is looked for (a `range:` that starts inside the take);
+    ``held=False``: held keys stay (a `range:` the manifest states is measured as stated).
 
     Held keys are found first: a T-pose held for some frames before the action leaves one rest
     frame, which goes too; a take that stands still after its rest frame (its first key held)
     loses that hold as well."""
     count = clip.frame_count
-    held = held_ends(world_pos)
-    if held is None:
-        return MotionPart(0, count, None, False)
-    first = held[0]
+    if not held:
+        rest_frame = rest and detect_tpose_frame(clip, world_pos, settings)
+        return MotionPart(int(rest_frame), count, rest_frame=rest_frame)
+    ends = held_ends(world_pos)
+    if ends is None:
+        return MotionPart(0, count, still=True)
+    first = ends[0]
+    spans = [(0, first)]
     # The rest frame is looked for before a held end is cut: a rest frame followed by one pose held
     # (a pose asset with its bind frame) left two frames, too few to tell, and read a 104 deg/s turn.
-    if not (rest and detect_tpose_frame(clip.trimmed(first, count), world_pos[first:], settings)):
-        return MotionPart(first, count - held[1], held, False)
-    first += 1
-    after = held_ends(world_pos[first:])
-    if after is None:  # the rest frame, then one pose held: a still pose
-        return MotionPart(first, count, None, True)
-    return MotionPart(first + after[0], count - after[1], (held[0] + after[0], after[1]), True)
+    rest_frame = rest and detect_tpose_frame(clip.trimmed(first, count), world_pos[first:], settings)
+    if rest_frame:
+        first += 1
+        after = held_ends(world_pos[first:])
+        if after is None:  # the rest frame, then one pose held: a still pose
+            return MotionPart(first, count, _spans(spans), True, still=True)
+        spans.append((first, first + after[0]))
+        first, stop = first + after[0], count - after[1]
+    else:
+        stop = count - ends[1]
+    spans.append((stop, count))
+    return MotionPart(first, stop, _spans(spans), rest_frame)
+
+
+def _spans(spans: list[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
+    return tuple(span for span in spans if span[1] > span[0])

@@ -586,7 +586,7 @@ def long_coat(clip: Clip, hem: float = 0.03, segments: int = 3) -> Clip:
 def _rest_heights(clip: Clip) -> FloatArray:
     from blendspace_pipeline.motion.clip import rest_positions
 
-    heights: FloatArray = rest_positions(clip)[:, 1]
+    heights: FloatArray = rest_positions(clip.skeleton)[:, 1]
     return heights
 
 

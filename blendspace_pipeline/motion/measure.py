@@ -130,6 +130,20 @@ def trim(clip: Clip, time_range: tuple[float, float] | None) -> Clip:
 TimeRange = tuple[float, float] | Literal["auto"] | None
 
 
+def part_options(time_range: object) -> dict[str, bool]:
+    """What `detect.motion_part` leaves out of a clip cut to ``time_range`` (a manifest entry's
+    `range:`), as `measure` decides it: without a range, a leading rest frame and held keys; with
+    `range: auto`, nothing more (measure cut them before choosing the range); with a stated range,
+    a rest frame only where the range starts at the take's start (the range is measured as stated,
+    held keys and all)."""
+    if time_range is None:
+        return {"rest": True, "held": True}
+    if time_range == "auto":
+        return {"rest": False, "held": False}
+    start = float(time_range[0])  # type: ignore[index]
+    return {"rest": start == 0.0, "held": False}
+
+
 def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> Measurement:
     """Every feature of spec.md for ``clip`` (trimmed to ``time_range`` first; ``"auto"`` picks
     the steady locomotion part, see `steady_span`)."""
@@ -157,9 +171,9 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     # The unit belongs to the file, not to a range of it: estimated on the untrimmed clip, every
     # `range:` entry of one take gets the same unit (and so comparable speeds).
     meters_per_unit, units_source, units_guess = resolve_units_guess(clip, whole_pos, settings, up_axis, root)
-    part = motion_part(
-        clip.trimmed(first, stop), whole_pos[first:stop], settings, rest=explicit is None or explicit[0] == 0
-    )
+    # With `range: auto` the whole take is cut first, then the steady strides are chosen in it.
+    options = part_options(None if auto else explicit)
+    part = motion_part(clip.trimmed(first, stop), whole_pos[first:stop], settings, **options)
     notes += part.notes(clip.fps)
     first, stop = first + part.first, first + part.stop
     ground = _ground_basis(up_axis)

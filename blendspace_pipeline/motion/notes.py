@@ -13,13 +13,14 @@ HELD_MARK = "held keys left out of the measurement"
 STILL_NOTE = "every frame holds the same pose (a still idle, or a pose exported as an animation)"
 
 
-def held_note(leading: int, trailing: int, fps: float) -> str:
+def held_note(spans: tuple[tuple[int, int], ...], fps: float) -> str:
+    """``spans``: the (first, stop) frames left out, each span's seconds said from its first frame
+    to its last, as `clip.range` counts them."""
     parts = [
-        f"the {where} {frames} frame{'s' if frames != 1 else ''} ({frames / fps:.2f} s)"
-        for where, frames in (("first", leading), ("last", trailing))
-        if frames
+        f"{stop - first} frame{'s' if stop - first != 1 else ''} at {first / fps:.2f}-{(stop - 1) / fps:.2f} s"
+        for first, stop in spans
     ]
     return (
-        f"{HELD_MARK} (each repeats the pose next to it, as a scene range longer than the action "
-        f"leaves them): {', '.join(parts)}"
+        f"{HELD_MARK} (frames that repeat the pose next to them, a hold such as a scene range longer "
+        f"than the action leaves): {', '.join(parts)}"
     )

@@ -43,7 +43,7 @@ from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.contacts import FootContacts
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.measure import trim
+from blendspace_pipeline.motion.measure import part_options, trim
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.cache import write_atomic
@@ -138,7 +138,7 @@ class PreparedSamples:
         clip = _source_clip(sample, self.generated, self.space.manifest.directory)
         if clip is None or clip.frame_count < 4:
             return None
-        clip = measured_part(clip, self.settings)
+        clip = measured_part(clip, self.settings, **part_options(sample.clip.entry.range))
         contacts = FootContacts.from_json(m.contacts, clip.duration)
         try:
             return prepare(clip, self.settings, m.meters_per_unit, contacts)

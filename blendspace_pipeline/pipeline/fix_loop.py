@@ -33,8 +33,9 @@ from blendspace_pipeline.errors import InputError
 from blendspace_pipeline.manifest.models import ClipEntry, MirrorTokens
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
+from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.measure import measure, trim
+from blendspace_pipeline.motion.measure import measure, part_options, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
 from blendspace_pipeline.pipeline.measure_stage import rig_settings
 from blendspace_pipeline.pipeline.placeholders import converge_placeholders
@@ -358,7 +359,9 @@ class _Fixer:
 
     # -- helpers --------------------------------------------------------------------------------
     def _clip(self, name: str) -> Clip:
-        """The animation of sample ``name``: a generated clip, or the source read and trimmed."""
+        """The animation of sample ``name``: a generated clip, or the source read, cut to its
+        `range:` and to the frames it was measured on (held keys and a rest frame left out: a
+        mirrored clip had kept a 4 s hold that the measurement, and every other fix, left out)."""
         if name in self.state.generated:
             return self.state.generated[name].clip
         if name not in self.clips:
@@ -366,7 +369,9 @@ class _Fixer:
             animation = str(measured.extra.get("animation", name))
             clips = read_clips(measured.source, project=self.original.manifest.directory)
             clip = next((c for c in clips if c.name == animation), clips[0])
-            self.clips[name] = trim(clip, measured.time_range)
+            self.clips[name] = measured_part(
+                trim(clip, measured.time_range), self.settings, **part_options(measured.entry.range)
+            )
         return self.clips[name]
 
     def _pairs(self, source: str) -> dict[str, str] | None:

@@ -58,11 +58,12 @@ def check_compatible(clips: Sequence[Clip]) -> None:
             raise IncompatibleClips(f"{clip.name} has {clip.frame_count} frame(s): no motion to blend")
 
 
-def measured_part(clip: Clip, settings: RigSettings) -> Clip:
+def measured_part(clip: Clip, settings: RigSettings, *, rest: bool = True, held: bool = True) -> Clip:
     """The clip without keys held at either end and without a leading rest/T-pose frame, decided
     as `measure` decides them, so a generated clip (and a played blend) is made of exactly the
-    motion its sources were measured on."""
-    part = motion_part(clip, forward_kinematics(clip)[1], settings)
+    motion its sources were measured on. ``clip`` is cut to its entry's `range:` already; pass that
+    range's `measure.part_options` (a stated range keeps its held keys)."""
+    part = motion_part(clip, forward_kinematics(clip)[1], settings, rest=rest, held=held)
     return clip if (part.first, part.stop) == (0, clip.frame_count) else clip.trimmed(part.first, part.stop)
 
 

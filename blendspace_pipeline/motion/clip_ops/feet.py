@@ -9,7 +9,7 @@ from __future__ import annotations
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops.phase import foot_joints
 from blendspace_pipeline.motion.contacts import FootContacts, detect_contacts
-from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.detect import RigSettings, toe_of
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 
@@ -23,8 +23,8 @@ def contact_joints(clip: Clip, settings: RigSettings) -> tuple[list[int], list[i
         return None
     found: list[list[int]] = []
     for foot in feet:
-        below = clip.skeleton.children(foot)
-        found.append([foot, below[0]] if below else [foot])
+        toe = toe_of(clip, foot)  # a heel bone beside the toe is not the toe (`detect.toe_of`)
+        found.append([foot, toe] if toe is not None else [foot])
     return found[0], found[1]
 
 

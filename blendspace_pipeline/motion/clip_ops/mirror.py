@@ -13,7 +13,6 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -113,8 +112,10 @@ def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None)
         # No name says which leg is which (`joint_07`, `Bone.007`; perhaps a few helper bones named
         # `ik_target_L`): every unnamed joint kept its own motion, and a mirrored walk came out with
         # its legs crossed. The rest pose's symmetry pairs them; a side in a name still decides.
-        by_shape = mirror_partners(skeleton, _rest_positions(skeleton))
-        if by_shape is None and partner == list(range(len(names))):
+        by_shape = mirror_partners(skeleton, rest_positions(skeleton))
+        # Names that pair fewer joints than two legs have (a few IK helpers) leave the legs
+        # unpaired: no mirror then, rather than one with crossed legs.
+        if by_shape is None and sum(p != j for j, p in enumerate(partner)) < 6:
             raise IncompatibleClips(
                 "no joint name says left or right, and the rest pose is no mirror image of itself "
                 "across the hips: no joint can be paired with its mirror partner; name the joints' "
@@ -132,18 +133,6 @@ def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None)
                 )
             return merged
     return partner
-
-
-def _rest_positions(skeleton: Skeleton) -> FloatArray:
-    rest = Clip(
-        "rest",
-        Path(),
-        skeleton,
-        skeleton.rest_rotations[None].copy(),
-        skeleton.rest_translations[None].copy(),
-        30.0,
-    )
-    return rest_positions(rest)
 
 
 def _reflect_rotation(q: FloatArray, normal: FloatArray) -> FloatArray:

@@ -98,7 +98,9 @@ def _foot_joints(clip: Clip, settings: RigSettings) -> tuple[int, int] | None:
         if named:
             feet.append(named[0])
             continue
-        rest_pos = rest_positions(clip)  # only rigs without a named foot pay for posing the rest pose
+        rest_pos = rest_positions(
+            clip.skeleton
+        )  # only rigs without a named foot pay for posing the rest pose
         feet.append(max(below, key=lambda j: np.linalg.norm(rest_pos[j] - rest_pos[hip])))
     return feet[0], feet[1]
 
