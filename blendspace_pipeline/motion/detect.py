@@ -1206,8 +1206,8 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
     an animation: nothing is left out).
 
     Blender exports the scene's frame range, and a 100-frame walk in a 250-frame scene ends in
-    4 s of its last pose held; a walk read 40 % slow without a word, and `range: auto` kept 2 s
-    of the hold. Even two frames held at each end of a 2 s take at 24 fps read it 8 % slow, so
+    6 s of its last pose held; the walk read at 40 % of its speed without a word, and `range:
+    auto` kept part of the hold. Even two frames held at each end of a 2 s take at 24 fps read it 8 % slow, so
     every held frame goes. A locomotion frame moves far more than the tolerance; the slowest
     motion (an idle's breath at its turning point, at 120 fps) can stay within it for a few
     frames, and those go too (harmless: they hardly move)."""
