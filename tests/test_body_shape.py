@@ -26,6 +26,7 @@ from blendspace_pipeline.motion.clip_ops.mirror import mirror_clip, mirror_pairs
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.hostile import (
     NAMELESS,
+    big_feet,
     heel_bones,
     long_coat,
     on_other_skeleton,
@@ -205,8 +206,8 @@ def test_an_asymmetric_nameless_rig_is_not_mirrored_blindly() -> None:
 
 @pytest.mark.parametrize(
     "change",
-    [heel_bones, long_coat, thigh_twist],
-    ids=["heel-before-toe", "floor-length-coat", "thigh-twist"],
+    [heel_bones, long_coat, thigh_twist, lambda c: big_feet(c, 0.25), lambda c: big_feet(c, 0.32)],
+    ids=["heel-before-toe", "floor-length-coat", "thigh-twist", "25cm-feet", "32cm-feet"],
 )
 @pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
 def test_rigs_that_look_like_other_legs_measure_as_named(

@@ -237,3 +237,28 @@ def test_a_mirrored_clip_is_made_of_the_frames_its_source_was_measured_on(tmp_pa
     [made] = read_clips(tmp_path / "out" / mirror["source"])
     assert made.frame_count == 61  # the file the engine plays: no hold in it
     assert mirror["features"]["turn_rate"] == pytest.approx(-90.0, abs=0.5)
+
+
+@pytest.mark.parametrize("fps", [24.0, 30.0, 60.0, 120.0])
+def test_a_hold_simplified_into_a_slow_ramp_is_held_too(fps: float) -> None:
+    """Blender's FBX export simplifies curves by default: a hold drifts on a straight line towards
+    the action's first key (0.4 mm a frame on the toes), no exact repeat. The walk had read 1.06
+    m/s for 1.4, and a turn in place 21.7 deg/s for 90, without a word."""
+    clip = generate(GaitSpec("walk", speed=1.4, turn_rate=30.0, duration=2.0, fps=fps))
+    lead, tail = round(0.6 * fps), round(2.0 * fps)
+    ramped = held_keys(clip, lead, tail, ramp=0.005)  # up to 0.9 mm a frame
+    assert held_ends(forward_kinematics(ramped)[1]) == (lead, tail)
+    measured = measure(ramped, SETTINGS)
+    assert measured.features["speed"] == pytest.approx(1.4, abs=1e-3)
+    assert measured.features["turn_rate"] == pytest.approx(30.0, abs=0.1)
+
+
+def test_a_clip_of_two_or_three_frames_says_so() -> None:
+    """Two moving frames between long holds read a 15 deg/s turn from one frame step, silently."""
+    walk = generate(GaitSpec("walk", speed=1.4, duration=2.0))
+    for frames in (2, 3):
+        short = held_keys(walk.trimmed(10, 10 + frames), 40, 40)
+        measured = measure(short, SETTINGS)
+        assert measured.frames == frames
+        assert any(note.startswith(f"only {frames} frames measured") for note in measured.notes)
+    assert not any(note.startswith("only") for note in measure(walk, SETTINGS).notes)

@@ -27,9 +27,8 @@ from blendspace_pipeline.motion.quaternions import FloatArray
 _LENGTH_TOLERANCE = 0.1  # bones of the two legs agree within this fraction of the longer one
 _MIRROR_TOLERANCE = 0.1  # each joint within this fraction of the leg's length of its mirror image
 _SIDES_COS = 0.5  # the toes tell the sides when they point within 60 deg of one way
-# The ankle: the first joint of the leg this close to its far end (a fraction of the hip's
-# distance to it): a foot is a fifth of a leg, a knee half of it, a thigh twist joint more.
-_ANKLE_REACH = 0.25
+# Degrees the leg turns at its ankle at least, from the shin to the foot (about 70 in a rest pose).
+_ANKLE_TURN = 40.0
 # Pairs are ranked first by how far their lowest joint is above the body's lowest, in steps of
 # this fraction of their length (legs reaching the floor are in the first step, the nearest to
 # the root then wins); a coat's hem 3 cm above the floor is in a later step.
@@ -161,16 +160,26 @@ def leg_chain(skeleton: Skeleton, top: int, rest_pos: FloatArray) -> list[int]:
 
 
 def ankle_of(leg: list[int], rest_pos: FloatArray) -> int | None:
-    """Index in ``leg`` (hip first) of the ankle: the first joint within `_ANKLE_REACH` of the
-    leg's far end, with a joint (the knee) between it and the hip; None when there is none."""
-    points = rest_pos[leg]
-    far = points[-1]
-    span = float(np.linalg.norm(far - points[0]))
-    if not span > 0.0:
+    """Index in ``leg`` (hip first) of the ankle: where the leg turns most sharply (at least
+    `_ANKLE_TURN`) from the shin to the foot, with a joint (the knee) between it and the hip; the
+    leg's last joint when it never turns that much (a leg that ends at its ankle); None for a
+    chain too short. A twist joint does not turn; a knee bends less than an ankle in any rest
+    pose short of a deep crouch, whatever the feet's size (a reach-based ankle took a 25 cm
+    foot's ankle for its toe, and the whole set read backwards)."""
+    if len(leg) < 3:
         return None
-    near = np.flatnonzero(np.linalg.norm(points - far, axis=1) <= _ANKLE_REACH * span)
-    index = int(near[0])
-    return index if index >= 2 else None
+    bones = np.diff(rest_pos[leg], axis=0)
+    lengths = np.linalg.norm(bones, axis=1)
+    turns = np.zeros(len(leg))
+    for joint in range(1, len(leg) - 1):
+        before, after = bones[joint - 1], bones[joint]
+        if lengths[joint - 1] > 0.0 and lengths[joint] > 0.0:
+            cosine = float(before @ after) / float(lengths[joint - 1] * lengths[joint])
+            turns[joint] = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    turns[:2] = 0.0  # the hip and the knee below it are no ankle
+    if turns.max() >= _ANKLE_TURN:
+        return int(np.argmax(turns))
+    return len(leg) - 1
 
 
 def _mirrored_legs(

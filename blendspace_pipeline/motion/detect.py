@@ -1199,6 +1199,16 @@ def detect_tpose_frame(clip: Clip, world_pos: FloatArray, settings: RigSettings)
 _HELD_TOLERANCE = 2e-6
 
 
+# Blender's FBX export simplifies curves by default: a hold becomes a slow straight ramp towards the
+# action's first key (0.4 mm a frame on the toes, the same every frame). Frames that move less than
+# this fraction of the body's extent a frame (1.7 mm on an adult), and less than `_NEAR_SHARE` of
+# the take's moving frames' median step, along a straight line (second differences under
+# `_NEAR_BEND` of the extent: 17 um, where mocap jitter is a millimetre) are held too.
+_NEAR_STEP = 1e-3
+_NEAR_SHARE = 0.02
+_NEAR_BEND = 1e-5
+
+
 def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
     """Frames to leave out at the start and at the end of a take because they repeat the pose
     next to them: ``(leading, trailing)``. The first frame of motion and the last stay (the hold
@@ -1207,32 +1217,45 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
 
     Blender exports the scene's frame range, and a 100-frame walk in a 250-frame scene ends in
     6 s of its last pose held; the walk read at 40 % of its speed without a word, and `range:
-    auto` kept part of the hold. Even two frames held at each end of a 2 s take at 24 fps read it 8 % slow, so
-    every held frame goes. A locomotion frame moves far more than the tolerance; the slowest
-    motion (an idle's breath at its turning point, at 120 fps) can stay within it for a few
-    frames, and those go too (harmless: they hardly move)."""
+    auto` kept part of the hold. Even two frames held at each end of a 2 s take at 24 fps read it
+    8 % slow, so every held frame goes. A locomotion frame moves far more than the tolerance; the
+    slowest motion (an idle's breath at its turning point, at 120 fps) can stay within it for a
+    few frames, and those go too (harmless: they hardly move). A hold that Blender's FBX curve
+    simplification turned into a slow ramp counts too (`_NEAR_STEP`)."""
     count = len(world_pos)
     if count < 3:
         return 0, 0
     scale = float(np.ptp(world_pos[0], axis=0).max()) or 1.0
-    tolerance = _HELD_TOLERANCE * scale
+    exact, near = _HELD_TOLERANCE * scale, _NEAR_STEP * scale
 
-    def same(a: int, b: int) -> bool:
-        return bool(np.abs(world_pos[a] - world_pos[b]).max() <= tolerance)
+    def step(a: int, b: int) -> float:
+        return float(np.abs(world_pos[a] - world_pos[b]).max())
 
-    # Most takes differ between their last two frames and their first two: one frame's check.
-    lead_possible, tail_possible = same(0, 1), same(count - 1, count - 2)
-    if not (lead_possible or tail_possible):
+    # Most takes move more than a near hold between their first two frames and their last two.
+    if step(0, 1) > near and step(count - 1, count - 2) > near:
         return 0, 0
-
-    def run(anchor: int, order: slice) -> int:
-        moved = np.abs(world_pos[order] - world_pos[anchor]).max(axis=(1, 2)) > tolerance
-        return int(np.argmax(moved)) if moved.any() else count
-
-    lead = run(0, slice(None)) - 1 if lead_possible else 0
-    if lead >= count - 1:
+    if float(np.abs(world_pos - world_pos[0]).max()) <= exact:
         return None
-    tail = run(count - 1, slice(None, None, -1)) - 1 if tail_possible else 0
+    steps = np.abs(np.diff(world_pos, axis=0)).max(axis=(1, 2))  # frame i to i + 1
+
+    def run(flags: np.ndarray) -> int:
+        return int(np.argmin(flags)) if not flags.all() else len(flags)
+
+    # Exact holds: frames that repeat the end frame's pose (measured from it, not frame to frame,
+    # so a slow motion's turning point cannot creep along in steps under the tolerance).
+    lead = run(np.abs(world_pos[1:] - world_pos[0]).max(axis=(1, 2)) <= exact)
+    tail = run(np.abs(world_pos[-2::-1] - world_pos[-1]).max(axis=(1, 2)) <= exact)
+    moving = steps[steps > near]
+    limit = min(near, _NEAR_SHARE * float(np.median(moving))) if len(moving) else 0.0
+    if limit > exact:  # a ramp: small steps along a straight line (the bend at each inner frame)
+        straight = np.abs(world_pos[2:] - 2.0 * world_pos[1:-1] + world_pos[:-2]).max(axis=(1, 2)) <= (
+            _NEAR_BEND * scale
+        )
+        small = steps <= limit
+        lead = max(lead, run(small & np.concatenate([[True], straight])))
+        tail = max(tail, run((small & np.concatenate([straight, [True]]))[::-1]))
+    if lead + tail >= count - 1:
+        return 0, 0  # slow straight motion all along (a drift, no hold to cut it from)
     return lead, tail
 
 

@@ -457,16 +457,28 @@ def mirrored_export(clip: Clip) -> Clip:
     )
 
 
-def held_keys(clip: Clip, leading: int, trailing: int, *, jitter: float = 0.0, seed: int = 0) -> Clip:
+def held_keys(
+    clip: Clip, leading: int, trailing: int, *, jitter: float = 0.0, ramp: float = 0.0, seed: int = 0
+) -> Clip:
     """``clip`` with its first pose held for ``leading`` frames before it and its last pose for
     ``trailing`` frames after it: what a DCC exports when the scene's frame range is longer than
     the action (constant extrapolation past the first and last key). ``jitter``: radians of noise
-    on every held rotation, as a re-evaluated key carries it (float32 storage: ~1e-7)."""
+    on every held rotation, as a re-evaluated key carries it (float32 storage: ~1e-7). ``ramp``:
+    radians every joint's rotation drifts over each hold, on a straight line towards the motion
+    (Blender's FBX curve simplification leaves a hold so: 0.4 mm a frame on the toes)."""
     rng = np.random.default_rng(seed)
+    axis = np.array([1.0, 0.0, 0.0])
 
     def pad(values: FloatArray, quaternions: bool) -> FloatArray:
         head = np.repeat(values[:1], leading, axis=0)
         tail = np.repeat(values[-1:], trailing, axis=0)
+        if quaternions and ramp:
+            for block, towards in (
+                (head, np.linspace(1.0, 0.0, leading + 1)[:-1]),
+                (tail, np.linspace(0.0, 1.0, trailing + 1)[1:]),
+            ):
+                turn = quat.from_axis_angle(axis, ramp * towards)  # (n, 4), one turn per frame
+                block[:] = quat.multiply(block, turn[:, None, :])
         if jitter and quaternions:
             for block in (head, tail):
                 block += rng.normal(0.0, jitter / 2.0, block.shape)
@@ -615,3 +627,16 @@ def thigh_twist(clip: Clip) -> Clip:
         )
     assert out.skeleton.joint_count == skeleton.joint_count + 2
     return out
+
+
+def big_feet(clip: Clip, toe_length: float) -> Clip:
+    """The procedural rig's toes ``toe_length`` metres ahead of the ankles (0.14 as generated): a
+    stylised character's feet, as long as a quarter of its leg or more."""
+    skeleton = clip.skeleton
+    rest = skeleton.rest_translations.copy()
+    translations = clip.translations.copy()
+    for side in ("Left", "Right"):
+        toe = skeleton.names.index(f"{side}Toe")
+        rest[toe, 2] = toe_length
+        translations[:, toe, 2] = toe_length
+    return replace(clip, skeleton=replace(skeleton, rest_translations=rest), translations=translations)

@@ -195,6 +195,11 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
             hint="give the clip more frames or widen its `range:`",
         )
     used = clip.trimmed(first, stop) if (first, stop) != (0, clip.frame_count) else clip
+    if used.frame_count < 4:  # a pose's two frames read a 25 deg/s turn from one step's noise
+        notes.append(
+            f"only {used.frame_count} frames measured: speed and turn come from {used.frame_count - 1} "
+            "frame step(s), not from a stride"
+        )
     world_rot, world_pos = whole_rot[first:stop], whole_pos[first:stop]
     range_used = (first / clip.fps, (stop - 1) / clip.fps)
     if auto:

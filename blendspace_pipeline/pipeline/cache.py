@@ -51,8 +51,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 13: a file's up axis the body contradicts is doubted, root motion faster than any body is doubted,
 # a single-frame pose among a file's animations is left out; 14: a root that jumps in one frame;
 # 15: keys held at either end (a scene range longer than the action) are left out, and the hips of
-# rigs whose names say nothing are found by the skeleton's shape.
-MEASUREMENT_REVISION = 15
+# rigs whose names say nothing are found by the skeleton's shape; 16: the same, as finished (15 was
+# used by intermediate versions of it, whose caches must not be read).
+MEASUREMENT_REVISION = 16
 
 
 def cache_key(
