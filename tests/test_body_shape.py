@@ -283,3 +283,17 @@ def test_a_few_sided_names_on_an_asymmetric_nameless_rig_are_not_mirrored() -> N
     lopsided = replace(clip.skeleton, names=tuple(names))
     with pytest.raises(IncompatibleClips, match="no joint name says left or right"):
         mirror_pairs(lopsided)
+
+
+def test_an_armature_named_after_its_file_and_control_bones_on_one_spot_still_mirror() -> None:
+    """Blender names an armature imported from `walk_turn_left.bvh` after the file: the root joint's
+    name said "left" and the mirror was refused. Two control bones on the centre line at one spot
+    (Rigify's `torso` and `MCH-WGT-hips`) made the shape pairing refuse a symmetric rig."""
+    clip = generate(GAITS[0])
+    named = replace(clip, skeleton=replace(clip.skeleton, names=("walk_turn_left", *clip.skeleton.names[1:])))
+    assert mirror_pairs(named.skeleton) == mirror_pairs(clip.skeleton)
+    controls = with_joints(
+        clip, [("torso", "Hips", (0.0, 0.1, 0.0), None), ("MCH-WGT-hips", "Hips", (0.0, 0.1, 0.0), None)]
+    )
+    nameless = renamed(controls, "blender")
+    assert mirror_pairs(nameless.skeleton) == mirror_pairs(controls.skeleton)

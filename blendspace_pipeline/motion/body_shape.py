@@ -304,6 +304,9 @@ def mirror_partners(skeleton: Skeleton, rest_pos: FloatArray) -> list[int] | Non
             return not mine
         tops = rest_pos[theirs]
         for joint in mine:
+            if joint in theirs and distance(joint, joint) <= tolerance:
+                partner[joint] = joint  # on the centre line (two control bones on one spot too)
+                continue
             # Only the joints whose own position mirrors this one's can hold a mirrored subtree.
             near = np.flatnonzero(np.linalg.norm(tops - reflected[joint], axis=1) <= tolerance)
             gaps = [distance(joint, theirs[i]) for i in near]
