@@ -91,12 +91,12 @@ def mirror_pairs(skeleton: Skeleton, overrides: Mapping[str, str] | None = None)
             base = _TRAILING_INDEX.sub("", name)
             candidates = [j for c in _swapped(base) for j in stripped.get(c, []) if c != base]
             match = candidates[0] if len(candidates) == 1 else None
+        # A root joint is the body's centre whatever its name says: Blender names an imported
+        # armature after its file (`walk_turn_left`), and the mirror had been refused for it.
         if match is None and skeleton.parents[i] >= 0:
             unpaired.append(name)
         elif match is not None:
             partner[i] = match
-        # A root joint is the body's centre whatever its name says: Blender names an imported
-        # armature after its file (`walk_turn_left`), and the mirror had been refused for it.
     # A joint with no side in its name under a sided parent (CMU's `lhand` under `LeftWrist`)
     # takes the same place under the parent's partner: the hierarchy is symmetric even when the
     # names are not.
