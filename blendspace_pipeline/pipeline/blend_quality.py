@@ -39,11 +39,10 @@ from blendspace_pipeline.motion.blend_model import (
     prepare,
 )
 from blendspace_pipeline.motion.clip import Clip
-from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.contacts import FootContacts
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.measure import part_options, trim
+from blendspace_pipeline.motion.measure import trim
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.cache import write_atomic
@@ -73,8 +72,14 @@ def _stats(name: str, values: FloatArray) -> dict[str, float]:
 
 
 def _source_clip(sample: Sample, generated: Mapping[str, Clip], project: Path | None) -> Clip | None:
+    """The frames of the sample's animation that it was measured on (`Measurement.range_used`:
+    its `range:`, or what `range: auto` chose, less a rest frame and held keys): the foot contacts
+    the blend plays are of exactly these frames. Read from the measurement, not decided again
+    (that was a sixth of a cold 1,000-clip map's time)."""
+    used = sample.clip.measurement.range_used
     if sample.generated:
-        return generated.get(sample.name)
+        found = generated.get(sample.name)
+        return trim(found, used) if found is not None else None
     animation = str(sample.clip.extra.get("animation", sample.name))
     try:
         clips = read_clips(sample.clip.source, project=project)
@@ -82,7 +87,7 @@ def _source_clip(sample: Sample, generated: Mapping[str, Clip], project: Path | 
         return None
     for clip in clips:
         if clip.name == animation:
-            return trim(clip, sample.clip.time_range)
+            return trim(clip, used)
     return None
 
 
@@ -128,7 +133,8 @@ class PreparedSamples:
         except OSError:
             content = "unreadable"
         animation = str(sample.clip.extra.get("animation", sample.name))
-        digest.update(f"|{content}|{source.name}|{animation}|{sample.clip.time_range!r}".encode())
+        played = sample.clip.measurement.range_used  # the frames `_source_clip` plays
+        digest.update(f"|{content}|{source.name}|{animation}|{played!r}".encode())
         return digest.hexdigest()
 
     def _prepare(self, sample: Sample) -> PreparedClip | None:
@@ -138,7 +144,6 @@ class PreparedSamples:
         clip = _source_clip(sample, self.generated, self.space.manifest.directory)
         if clip is None or clip.frame_count < 4:
             return None
-        clip = measured_part(clip, self.settings, **part_options(sample.clip.entry.range))
         contacts = FootContacts.from_json(m.contacts, clip.duration)
         try:
             return prepare(clip, self.settings, m.meters_per_unit, contacts)
