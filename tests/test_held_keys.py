@@ -262,3 +262,19 @@ def test_a_clip_of_two_or_three_frames_says_so() -> None:
         assert measured.frames == frames
         assert any(note.startswith(f"only {frames} frames measured") for note in measured.notes)
     assert not any(note.startswith("only") for note in measure(walk, SETTINGS).notes)
+
+
+def test_a_slowly_drifting_stand_that_eases_into_a_walk_is_not_a_hold() -> None:
+    """A filtered mocap stand drifts slowly on a straight line, as a simplified DCC hold does, but
+    the walk after it speeds up gradually: only a hold that the action leaves at once (its first
+    key) is cut, so whole takes with stands measure as before."""
+    spec = HostileSpec("walk", stand=0.5, fps=120.0, up="y", unit="m", tpose_first_frame=False)
+    clip = take(spec).clip
+    stand = round(0.5 * 120.0)
+    translations = clip.translations.copy()
+    hips = clip.skeleton.names.index("Hips")
+    translations[:stand, hips, 0] += np.linspace(0.0, 0.003, stand)  # 3 mm over the stand,
+    translations[stand:, hips, 0] += 0.003  # and on from there
+    drifting = replace(clip, translations=translations)
+    held = held_ends(forward_kinematics(drifting)[1])
+    assert held is not None and held[0] == 0

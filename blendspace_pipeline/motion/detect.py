@@ -1207,6 +1207,8 @@ _HELD_TOLERANCE = 2e-6
 _NEAR_STEP = 1e-3
 _NEAR_SHARE = 0.02
 _NEAR_BEND = 1e-5
+# The step out of a ramp is this many times its largest step at least: the action starts at once.
+_ABRUPT = 10.0
 
 
 def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
@@ -1252,8 +1254,16 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
             _NEAR_BEND * scale
         )
         small = steps <= limit
-        lead = max(lead, run(small & np.concatenate([[True], straight])))
-        tail = max(tail, run((small & np.concatenate([straight, [True]]))[::-1]))
+
+        def ramp(held: int, ordered: np.ndarray) -> int:
+            """``held`` steps of a ramp count when the motion after it starts at once (the
+            action's first key); a filtered mocap stand speeds up gradually and stays in."""
+            if held == 0 or held >= len(ordered):
+                return 0
+            return held if ordered[held] >= _ABRUPT * max(float(ordered[:held].max()), exact) else 0
+
+        lead = max(lead, ramp(run(small & np.concatenate([[True], straight])), steps))
+        tail = max(tail, ramp(run((small & np.concatenate([straight, [True]]))[::-1]), steps[::-1]))
     if lead + tail >= count - 1:
         return 0, 0  # slow straight motion all along (a drift, no hold to cut it from)
     return lead, tail
