@@ -176,6 +176,22 @@ def test_every_unreadable_clip_is_named_at_once(tmp_path: Path) -> None:
         assert any("broken.glb" in d["message"] for d in found)
 
 
+def test_every_clip_path_that_finds_nothing_is_named_at_once(tmp_path: Path) -> None:
+    """Three entries that find no file: the first stopped the build, and the next run found the
+    next. Each is said at its own manifest line, before anything is measured."""
+    _write_clip(tmp_path / "clips", GaitSpec("walk", speed=1.4))
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: t\nclips:\n  - path: clips/*.usda\n  - path: nowhere/a.bvh\n"
+        "  - path: gone/*.bvh\n  - path: also_missing.bvh\n"
+    )
+    result = _cli("check", str(manifest))
+    assert result.returncode == 2, result.stderr
+    located = [line for line in result.stderr.splitlines() if line.startswith(f"{manifest}:")]
+    assert [line.split(": ")[0] for line in located] == [f"{manifest}:{n}:5" for n in (5, 6, 7)]
+    assert "Traceback" not in result.stderr
+
+
 def test_unsupported_and_missing_clips_are_exit_2(tmp_path: Path) -> None:
     (tmp_path / "walk.fbx").write_bytes(b"Kaydara FBX Binary  \x00")
     manifest = tmp_path / "manifest.yaml"

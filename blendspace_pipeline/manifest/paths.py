@@ -47,7 +47,17 @@ def resolve_clip_files(
     with ``key=("layers", 0, "clips")`` and still get their own lines in messages.
     """
     entries = loaded.model.clips if entries is None else entries
-    matched = [_files_of(loaded, entry, (*key, index)) for index, entry in enumerate(entries)]
+    matched: list[list[Path]] = []
+    missing: list[ManifestError] = []
+    for index, entry in enumerate(entries):
+        try:
+            matched.append(_files_of(loaded, entry, (*key, index)))
+        except ManifestError as error:  # every entry that finds nothing, said at once
+            missing.append(error)
+            matched.append([])
+    if missing:
+        missing[0].more = list(missing[1:])
+        raise missing[0]
     folders: dict[str, str] = {}
     identities = [[_identity(file, folders) for file in files] for files in matched]
     globbed = [_is_glob(loaded, entry) for entry in entries]
