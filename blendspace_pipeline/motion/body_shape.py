@@ -16,7 +16,7 @@ motion decides (`detect._shape_facing`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -51,12 +51,13 @@ class _Legs:
     b: list[int]
     ankle: int  # index of the ankle in both
     length: float
+    gap: float = 0.0  # how far the legs' lowest joint is above the body's lowest (`_hanging`)
 
 
-def hips_by_shape(skeleton: Skeleton, rest_pos: FloatArray) -> ShapeHips | None:
+def hips_by_shape(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None) -> ShapeHips | None:
     """The hip joints of the mirrored pair of leg chains that reaches the floor, nearest the root
     among those, or None. ``rest_pos``: the rest pose's world joint positions (J, 3)."""
-    legs = find_legs(skeleton, rest_pos)
+    legs = find_legs(skeleton, rest_pos, tree)
     if legs is None:
         return None
     side = _sides(rest_pos, legs)
@@ -106,11 +107,13 @@ class _Tree:
         return chain
 
 
-def find_legs(skeleton: Skeleton, rest_pos: FloatArray) -> _Legs | None:
+def find_legs(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None) -> _Legs | None:
+    """The mirrored pair of leg chains that reaches the floor, nearest the root among those.
+    ``tree``: the skeleton's `_Tree`, when the caller has one."""
     if not skeleton.has_hierarchy:
         return None
-    tree = _Tree(skeleton)
-    found: list[tuple[_Legs, float]] = []
+    tree = tree or _Tree(skeleton)
+    found: list[_Legs] = []
     for children in tree.children:
         # Each child's chain once; only chains of one length (three joints or more) that hang
         # down to the body's lowest point can pair (hair and cloth chains by the hundred do not).
@@ -125,15 +128,14 @@ def find_legs(skeleton: Skeleton, rest_pos: FloatArray) -> _Legs | None:
                 for chain_b in chains[i + 1 :]:
                     legs = _mirrored_legs(skeleton, rest_pos, chain_a, chain_b)
                     if legs is not None:
-                        found.append((legs, _above_floor(rest_pos, legs)))
+                        found.append(legs)
     if not found:
         return None
 
-    def rank(item: tuple[_Legs, float]) -> tuple[int, int, float]:
-        legs, gap = item
-        return int(gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], -legs.length
+    def rank(legs: _Legs) -> tuple[int, int, float]:
+        return int(legs.gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], -legs.length
 
-    return min(found, key=rank)[0]
+    return min(found, key=rank)
 
 
 def _reaches_floor(rest_pos: FloatArray, chain: list[int]) -> bool:
@@ -186,7 +188,7 @@ def _mirrored_legs(
     skeleton: Skeleton, rest_pos: FloatArray, chain_a: list[int], chain_b: list[int]
 ) -> _Legs | None:
     """The two chains as a body's legs: bone for bone the same lengths, mirror images across the
-    plane between their hips, hanging lowest with a knee above the ankle (`_hang_lowest`). The
+    plane between their hips, hanging lowest with a knee above the ankle (`_hanging`). The
     hips are where the chains part: CMU's `LHipJoint` sits on the pelvis, its `LeftUpLeg` at the
     hip. None when they are not legs."""
     if len(chain_a) != len(chain_b) or len(chain_a) < 3:
@@ -212,8 +214,7 @@ def _mirrored_legs(
     ankle = ankle_of(leg_a, rest_pos)
     if ankle is None or ankle != ankle_of(leg_b, rest_pos):
         return None
-    legs = _Legs(leg_a, leg_b, ankle, length)
-    return legs if _hang_lowest(rest_pos, legs) else None
+    return _hanging(rest_pos, _Legs(leg_a, leg_b, ankle, length))
 
 
 def _up(rest_pos: FloatArray, legs: _Legs) -> tuple[FloatArray, float]:
@@ -224,22 +225,17 @@ def _up(rest_pos: FloatArray, legs: _Legs) -> tuple[FloatArray, float]:
     return ((hips - ankles) / drop if drop > 0.0 else hips - ankles), drop
 
 
-def _hang_lowest(rest_pos: FloatArray, legs: _Legs) -> bool:
-    """Whether the two chains hang down from their tops (ankles at least half the leg's length
-    below the hips, as legs stand in any rest pose) and no joint of the body is lower than their
-    ends: arms held out in a T-pose do not hang, arms in an A-pose end above the feet."""
+def _hanging(rest_pos: FloatArray, legs: _Legs) -> _Legs | None:
+    """``legs`` with their floor gap, when the two chains hang down from their tops (ankles at
+    least half the leg's length below the hips, as legs stand in any rest pose) and no joint of
+    the body is lower than their ends: arms held out in a T-pose do not hang, arms in an A-pose
+    end above the feet. None otherwise."""
     up, drop = _up(rest_pos, legs)
     if drop < 0.5 * legs.length:
-        return False
-    return _above_floor(rest_pos, legs, up) <= 0.1 * legs.length
-
-
-def _above_floor(rest_pos: FloatArray, legs: _Legs, up: FloatArray | None = None) -> float:
-    """How far the legs' lowest joint is above the body's lowest, along the legs' up."""
-    if up is None:
-        up = _up(rest_pos, legs)[0]
+        return None
     heights = rest_pos @ up
-    return float(min(heights[legs.a].min(), heights[legs.b].min()) - heights.min())
+    gap = float(min(heights[legs.a].min(), heights[legs.b].min()) - heights.min())
+    return replace(legs, gap=gap) if gap <= 0.1 * legs.length else None
 
 
 def _sides(rest_pos: FloatArray, legs: _Legs) -> float | None:
@@ -275,10 +271,10 @@ def mirror_partners(skeleton: Skeleton, rest_pos: FloatArray) -> list[int] | Non
     else each with the one whose subtree is nearest its own reflected. Below a centre joint the
     children pair among themselves (CMU's `LHipJoint`, on the pelvis like `LowerBack`, pairs
     with `RHipJoint`)."""
-    hips = hips_by_shape(skeleton, rest_pos)
+    tree = _Tree(skeleton)
+    hips = hips_by_shape(skeleton, rest_pos, tree)
     if hips is None:
         return None
-    tree = _Tree(skeleton)
     a, b = rest_pos[hips.left], rest_pos[hips.right]
     normal = (a - b) / np.linalg.norm(a - b)
     middle = 0.5 * (a + b)

@@ -1236,9 +1236,6 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
     # Most takes move more than a near hold between their first two frames and their last two.
     if step(0, 1) > near and step(count - 1, count - 2) > near:
         return 0, 0
-    if float(np.abs(world_pos - world_pos[0]).max()) <= exact:
-        return None
-    steps = np.abs(np.diff(world_pos, axis=0)).max(axis=(1, 2))  # frame i to i + 1
 
     def run(flags: np.ndarray) -> int:
         return int(np.argmin(flags)) if not flags.all() else len(flags)
@@ -1246,7 +1243,10 @@ def held_ends(world_pos: FloatArray) -> tuple[int, int] | None:
     # Exact holds: frames that repeat the end frame's pose (measured from it, not frame to frame,
     # so a slow motion's turning point cannot creep along in steps under the tolerance).
     lead = run(np.abs(world_pos[1:] - world_pos[0]).max(axis=(1, 2)) <= exact)
+    if lead == count - 1:
+        return None
     tail = run(np.abs(world_pos[-2::-1] - world_pos[-1]).max(axis=(1, 2)) <= exact)
+    steps = np.abs(np.diff(world_pos, axis=0)).max(axis=(1, 2))  # frame i to i + 1
     moving = steps[steps > near]
     limit = min(near, _NEAR_SHARE * float(np.median(moving))) if len(moving) else 0.0
     if limit > exact:  # a ramp: small steps along a straight line (the bend at each inner frame)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
-from blendspace_pipeline.motion.clip import Clip, Skeleton
+from blendspace_pipeline.motion.clip import Clip, Skeleton, rest_positions
 from blendspace_pipeline.motion.procedural import HIP_HEIGHT, _convert_up, _scaled, humanoid_skeleton
 from blendspace_pipeline.motion.quaternions import FloatArray
 
@@ -596,8 +596,6 @@ def long_coat(clip: Clip, hem: float = 0.03, segments: int = 3) -> Clip:
 
 
 def _rest_heights(clip: Clip) -> FloatArray:
-    from blendspace_pipeline.motion.clip import rest_positions
-
     heights: FloatArray = rest_positions(clip.skeleton)[:, 1]
     return heights
 

@@ -161,17 +161,16 @@ def measure_files(
         job_list.append(Job(f.path, settings_of[id(f.entry)], _range(f.entry), loaded.directory, store))
     results = _measure_all(job_list, cache.Pack(loaded.path, part), jobs, progress)
     results = _one_answer_per_skeleton(job_list, results)
-    failed = [
-        _at_entry(loaded, resolved, result)
-        for resolved, result in zip(files, results, strict=True)
-        if isinstance(result, InputError)
-    ]
+    clips: list[MeasuredClip] = []
+    failed: list[InputError] = []
+    for resolved, result in zip(files, results, strict=True):
+        if isinstance(result, InputError):
+            failed.append(_at_entry(loaded, resolved, result))
+        else:
+            clips += _named(resolved, result)
     if failed:  # every unreadable clip at once: a studio fixing ten files does not run ten builds
         failed[0].more = failed[1:]
         raise failed[0]
-    clips: list[MeasuredClip] = []
-    for resolved, result in zip(files, results, strict=True):
-        clips += _named(resolved, result)  # type: ignore[arg-type]
     _reject_duplicate_names(loaded, clips)
     return clips
 
