@@ -343,7 +343,7 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
     beside: list[bool] = []  # whether this process wrote outputs while the workers played
     real = blend_quality._play_all
 
-    def recorded(prepared, settings, points, jobs, meanwhile=None):  # type: ignore[no-untyped-def]
+    def recorded(prepared, points, jobs, meanwhile=None):  # type: ignore[no-untyped-def]
         calls.append(len(points))
         ran: list[bool] = []
 
@@ -351,7 +351,7 @@ def test_foot_skate_played_in_worker_processes_equals_one_process(
             ran.append(True)
             meanwhile()
 
-        result = real(prepared, settings, points, jobs, spied if meanwhile else None)
+        result = real(prepared, points, jobs, spied if meanwhile else None)
         beside.append(bool(ran))
         return result
 

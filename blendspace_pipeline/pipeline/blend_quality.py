@@ -24,6 +24,7 @@ import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ from blendspace_pipeline.motion.blend_model import (
 )
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
+from blendspace_pipeline.motion.clip_ops.up_axis import y_up
 from blendspace_pipeline.motion.contacts import FootContacts
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import trim
@@ -47,7 +49,7 @@ from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.cache import write_atomic
 from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_chunks
-from blendspace_pipeline.pipeline.measure_stage import rig_settings
+from blendspace_pipeline.pipeline.measure_stage import entry_settings, rig_settings
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
 from blendspace_pipeline.space.model import BlendSpace, Sample
@@ -57,7 +59,7 @@ SKATE_STEP = 2  # foot skate on every other grid point
 SKATE_FPS = 20.0  # ticks per second of the played blend
 # Bumped whenever the same blend would give another foot skate (play, prepare, the rest-frame
 # cut), so a cache never serves numbers of older code under an unchanged version.
-SKATE_REVISION = 1
+SKATE_REVISION = 2
 
 
 def _grid(values: FloatArray) -> Grid:
@@ -98,25 +100,34 @@ class PreparedSamples:
     def __init__(self, space: BlendSpace, generated: Mapping[str, Clip]) -> None:
         self.space = space
         self.generated = generated
-        self.settings = rig_settings(space.manifest.model.skeleton)
         self.cache: dict[int, PreparedClip | None] = {}
         self.keys: dict[int, str] = {}
+        self.settings: dict[int, RigSettings] = {}
+
+    def settings_of(self, index: int) -> RigSettings:
+        """How sample ``index``'s clip is read: its entry's `skeleton:` keys over the top-level
+        ones (a generated clip's entry carries its sources' keys), as it was measured."""
+        if index not in self.settings:
+            top = self.space.manifest.model.skeleton
+            self.settings[index] = rig_settings(entry_settings(top, self.space.samples[index].clip.entry))
+        return self.settings[index]
 
     def __getitem__(self, index: int) -> PreparedClip | None:
         if index not in self.cache:
-            self.cache[index] = self._prepare(self.space.samples[index])
+            self.cache[index] = self._prepare(self.space.samples[index], self.settings_of(index))
         return self.cache[index]
 
     def key(self, index: int) -> str:
         """What sample ``index`` brings to a blend, without reading its clip (see the module)."""
         if index not in self.keys:
-            self.keys[index] = self._key(self.space.samples[index])
+            self.keys[index] = self._key(self.space.samples[index], self.settings_of(index))
         return self.keys[index]
 
-    def _key(self, sample: Sample) -> str:
+    def _key(self, sample: Sample, settings: RigSettings) -> str:
         m = sample.clip.measurement
         digest = hashlib.sha256()
-        digest.update(json.dumps([m.contacts, repr(m.meters_per_unit)], sort_keys=True).encode())
+        described = [m.contacts, repr(m.meters_per_unit), settings.cache_key()]
+        digest.update(json.dumps(described, sort_keys=True).encode())
         if sample.generated:
             clip = self.generated.get(sample.name)
             if clip is None:
@@ -137,7 +148,7 @@ class PreparedSamples:
         digest.update(f"|{content}|{source.name}|{animation}|{played!r}".encode())
         return digest.hexdigest()
 
-    def _prepare(self, sample: Sample) -> PreparedClip | None:
+    def _prepare(self, sample: Sample, settings: RigSettings) -> PreparedClip | None:
         m = sample.clip.measurement
         if m.contacts is None:
             return None
@@ -145,8 +156,10 @@ class PreparedSamples:
         if clip is None or clip.frame_count < 4:
             return None
         contacts = FootContacts.from_json(m.contacts, clip.duration)
+        if m.up_axis == "z":  # played beside Y-up takes, as an engine imports it: turned Y up
+            clip, settings = y_up(clip), replace(settings, up="y")
         try:
-            return prepare(clip, self.settings, m.meters_per_unit, contacts)
+            return prepare(clip, settings, m.meters_per_unit, contacts)
         except IncompatibleClips:  # an X-up take: measured, but not played (as an unreadable one)
             return None
 
@@ -156,27 +169,27 @@ def _play_point(
     indices: Sequence[int],
     weights: Sequence[float],
     rates: Sequence[float],
-    settings: RigSettings,
 ) -> float | None:
     """The foot skate of one blend, or None when it cannot be played (a clip unreadable or
-    without feet, clips of different skeletons) or has no planted foot."""
+    without feet, clips of different skeletons) or has no planted foot. Each clip is prepared
+    with its own settings; the blended pose has the first clip's skeleton, and its settings."""
     clips = [prepared[i] for i in indices]
     ready = [c for c in clips if c is not None]
     if len(ready) < len(clips) or not all(ready[0].clip.skeleton.same_layout(c.clip.skeleton) for c in ready):
         return None  # other joint names or hierarchy: no engine blends them (see `inconsistent-skeleton`)
-    played = play(ready, weights, rates, settings, fps=SKATE_FPS)
+    played = play(ready, weights, rates, prepared.settings_of(indices[0]), fps=SKATE_FPS)
     return played.foot_sliding
 
 
-def _base_key(space: BlendSpace, settings_key: str, sync: SyncMode) -> str:
-    """What every point of ``space`` shares: code, settings, where references may be read from."""
+def _base_key(space: BlendSpace, sync: SyncMode) -> str:
+    """What every point of ``space`` shares: code, sync, where references may be read from (each
+    sample's rig settings are in its own key)."""
     return json.dumps(
         [
             __version__,
             cache.MEASUREMENT_REVISION,
             SKATE_REVISION,
             SKATE_FPS,
-            settings_key,
             sync,
             str(space.manifest.directory),
             os.environ.get("BLENDSPACE_MAX_FRAMES", ""),
@@ -220,7 +233,7 @@ Point = tuple[int, int, list[int], list[float], list[float], str | None]
 
 # What forked workers play from: set just before the pool forks, so the prepared clips and the
 # space are inherited by the workers' memory instead of being pickled to them.
-_FORKED: tuple[PreparedSamples, RigSettings] | None = None
+_FORKED: PreparedSamples | None = None
 # Below this many blends to play, starting worker processes costs more than it saves.
 PARALLEL_MIN_POINTS = 8
 # How long blends are played here before deciding on workers, and how much playing left (at the
@@ -241,8 +254,7 @@ def foot_skate_grid(
     jobs: int = 1,
     meanwhile: Callable[[], None] | None = None,
 ) -> FloatArray:
-    settings = rig_settings(space.manifest.model.skeleton)
-    base = _base_key(space, settings.cache_key(), grid.sync) if cache.cache_dir() is not None else ""
+    base = _base_key(space, grid.sync) if cache.cache_dir() is not None else ""
     ny, nx = grid.distance.shape
     skate = np.full((ny, nx), np.nan)
     computed = np.zeros((ny, nx), dtype=bool)
@@ -267,7 +279,7 @@ def foot_skate_grid(
             elif value is not None:
                 skate[row, col] = value
                 computed[row, col] = True
-    played = _play_all(prepared, settings, to_play, jobs, meanwhile)
+    played = _play_all(prepared, to_play, jobs, meanwhile)
     for (row, col, *_, key), value in zip(to_play, played, strict=True):
         _store(key, value)
         if value is not None:
@@ -284,7 +296,6 @@ def foot_skate_grid(
 
 def _play_all(
     prepared: PreparedSamples,
-    settings: RigSettings,
     points: list[Point],
     jobs: int,
     meanwhile: Callable[[], None] | None = None,
@@ -303,7 +314,7 @@ def _play_all(
 
     def here(index: int) -> float | None:
         point = points[index]
-        return _play_point(prepared, point[2], point[3], point[4], settings)
+        return _play_point(prepared, point[2], point[3], point[4])
 
     fork = "fork" in multiprocessing.get_all_start_methods()
     if jobs < 2 or len(points) < PARALLEL_MIN_POINTS or not fork:
@@ -326,7 +337,7 @@ def _play_all(
         [points[i][2:5] for i in rest[first:last]] for first, last in guided_chunks(len(rest), jobs, 16)
     ]
     global _FORKED
-    _FORKED = (prepared, settings)
+    _FORKED = prepared
     try:
         with ProcessPoolExecutor(
             min(jobs, len(chunks)), mp_context=multiprocessing.get_context("fork")
@@ -346,8 +357,7 @@ def _play_all(
 def _play_chunk(chunk: list[tuple[list[int], list[float], list[float]]]) -> list[float | None]:
     """Worker: play the chunk's blends with the prepared clips inherited from the parent."""
     assert _FORKED is not None, "runs only in a worker forked by _play_all"
-    prepared, settings = _FORKED
-    return [_play_point(prepared, indices, weights, rates, settings) for indices, weights, rates in chunk]
+    return [_play_point(_FORKED, indices, weights, rates) for indices, weights, rates in chunk]
 
 
 def blend_quality(

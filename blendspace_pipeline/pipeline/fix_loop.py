@@ -37,7 +37,7 @@ from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure, part_options, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
-from blendspace_pipeline.pipeline.measure_stage import rig_settings
+from blendspace_pipeline.pipeline.measure_stage import entry_settings, rig_settings
 from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.provenance import Provenance, read_provenance
@@ -186,7 +186,6 @@ class _Fixer:
         self.original = space
         self.state = state
         self.model = space.manifest.model
-        self.settings: RigSettings = rig_settings(self.model.skeleton)
         self.sources = {s.name: s.clip for s in space.samples}
         self.clips: dict[str, Clip] = {}
         self._provenance: dict[str, Provenance | None] = {}
@@ -271,7 +270,9 @@ class _Fixer:
         data = diagnostic.fix_data or {}
         source = str(data["source"])
         name = self._unique(mirrored_name(source))
-        clip = mirror_clip(self._clip(source), settings=self.settings, name=name, pairs=self._pairs(source))
+        clip = mirror_clip(
+            self._clip(source), settings=self._settings(source), name=name, pairs=self._pairs(source)
+        )
         return self._add(clip, "missing-opposite", (source,), f"mirror of {source}", (1.0,))
 
     def _axis_clip(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
@@ -303,7 +304,10 @@ class _Fixer:
         label = f"{space.axes[1 - axis_index].feature}_{point[1 - axis_index]:g}".replace("-", "m")
         name = self._unique(_safe(f"axis_{label}"))
         clip = blend_clips(
-            [self._clip(a.name), self._clip(b.name)], weights, name=name, settings=self.settings
+            [self._clip(a.name), self._clip(b.name)],
+            weights,
+            name=name,
+            settings=self._shared_settings((a.name, b.name)),
         )
         note = f"{weights[0]:.3f} x {a.name} + {weights[1]:.3f} x {b.name}"
         return self._add(clip, "crossing-axis", (a.name, b.name), note, weights)
@@ -337,7 +341,7 @@ class _Fixer:
         name = self._unique(_safe("merged_" + "_".join(sorted(loose))))
         clips = [self._clip(n) for n in sorted(loose)]
         weights = [1.0 / len(clips)] * len(clips)
-        clip = blend_clips(clips, weights, name=name, settings=self.settings)
+        clip = blend_clips(clips, weights, name=name, settings=self._shared_settings(sorted(loose)))
         for member in loose:
             self.state.removed[member] = f"too-close: merged into {name}"
         return self._add(clip, "too-close", tuple(sorted(loose)), "equal-weight merge", tuple(weights))
@@ -353,7 +357,7 @@ class _Fixer:
             self.state.removed[source] = f"misalignment: {earlier[0]} already is its straight version"
             return True
         name = self._unique(_safe(f"{source}_straight"))
-        clip = straighten_clip(self._clip(source), settings=self.settings, name=name)
+        clip = straighten_clip(self._clip(source), settings=self._settings(source), name=name)
         self.state.removed[source] = f"misalignment: replaced by {name}"
         return self._add(clip, "misalignment", (source,), "turn removed", (1.0,))
 
@@ -370,12 +374,36 @@ class _Fixer:
             clips = read_clips(measured.source, project=self.original.manifest.directory)
             clip = next((c for c in clips if c.name == animation), clips[0])
             self.clips[name] = measured_part(
-                trim(clip, measured.time_range), self.settings, **part_options(measured.entry.range)
+                trim(clip, measured.time_range), self._settings(name), **part_options(measured.entry.range)
             )
         return self.clips[name]
 
+    def _entry(self, name: str) -> ClipEntry:
+        """The manifest entry sample ``name`` came from (a generated clip: its first source's)."""
+        while name in self.state.generated and name not in self.sources:
+            name = self.state.generated[name].sources[0]
+        return self.sources[name].entry
+
+    def _settings(self, name: str) -> RigSettings:
+        """How sample ``name``'s clip is read: its entry's `skeleton:` keys over the top-level
+        ones. Its fixes make, cut and measure clips with these (with the top-level ones, the mirror
+        of a Z-up take under `skeleton: {up: z}` had been measured Y-up)."""
+        return rig_settings(entry_settings(self.model.skeleton, self._entry(name)))
+
+    def _shared_settings(self, names: Sequence[str]) -> RigSettings:
+        """The settings of samples ``names``, blended into one clip: they must read alike."""
+        found = {n: self._settings(n) for n in names}
+        first = found[names[0]]
+        other = next((n for n in names if found[n] != first), None)
+        if other is not None:
+            raise IncompatibleClips(
+                f"{names[0]} and {other} are read with different `skeleton:` settings "
+                f"({first.cache_key()} and {found[other].cache_key()})"
+            )
+        return first
+
     def _pairs(self, source: str) -> dict[str, str] | None:
-        tokens = self.model.skeleton.mirror
+        tokens = entry_settings(self.model.skeleton, self._entry(source)).mirror
         if not isinstance(tokens, MirrorTokens):
             return None
         names = self._clip(source).skeleton.names
@@ -514,13 +542,14 @@ class _Fixer:
         if generated.measured is None:
             name = generated.clip.name
             try:
-                measurement = measure(generated.clip, self.settings)
+                measurement = measure(generated.clip, self._settings(generated.sources[0]))
             except InputError as error:  # a generated clip that cannot be measured is our bug
                 raise RuntimeError(f"generated clip {name} cannot be measured: {error}") from error
             generated.measured = MeasuredClip(
                 name,
                 Path("clips") / f"{name}.usda",
-                ClipEntry(path=f"clips/{name}.usda"),
+                # Its sources' `skeleton:` keys: the maps play it, and later fixes cut it, with them.
+                ClipEntry(path=f"clips/{name}.usda", skeleton=self._entry(generated.sources[0]).skeleton),
                 generated.line,
                 generated.column,
                 measurement,

@@ -24,6 +24,7 @@ import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip
+from blendspace_pipeline.motion.clip_ops.up_axis import turn_roots_y_up
 from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.readers.provenance import GLTF_KEY, Provenance
 from blendspace_pipeline.report.atomic import atomic_path
@@ -80,12 +81,7 @@ def _metres_y_up(clip: Clip, units: float, up: str) -> tuple[FloatArray, FloatAr
     translations = clip.translations * units
     rotations = quat.normalize(clip.rotations.copy())
     if up == "z":
-        to_y_up = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), -0.5 * np.pi)  # +Z -> +Y, +Y -> -Z
-        roots = [j for j, p in enumerate(skeleton.parents) if p < 0 or not skeleton.has_hierarchy]
-        rest_t[roots] = quat.rotate(to_y_up, rest_t[roots])
-        rest_r[roots] = quat.multiply(to_y_up, rest_r[roots])
-        translations[:, roots] = quat.rotate(to_y_up, translations[:, roots])
-        rotations[:, roots] = quat.multiply(to_y_up, rotations[:, roots])
+        turn_roots_y_up(skeleton, rest_t, rest_r, translations, rotations)
     return rest_t, rest_r, translations, _continuous(rotations)
 
 
