@@ -41,11 +41,12 @@ AXES = (
 FIXES = "fixes: {mirror: true, axis_clips: true, too_close: merge}\n"
 
 
-def _project(root: Path, other_convention: bool) -> Path:
+def _project(root: Path, other_convention: bool, turns: frozenset[str] = frozenset()) -> Path:
+    """``turns``: the takes exported in the turns' convention (default: every name with "turn")."""
     for folder in ("straight", "turns"):
         (root / folder).mkdir(parents=True)
     for spec in SPECS:
-        turn = "turn" in spec.name
+        turn = spec.name in turns if turns else "turn" in spec.name
         if turn and other_convention:
             clip = generate_planted(spec, up="z", meters_per_unit=0.01)
         else:
@@ -120,3 +121,15 @@ def test_a_z_up_take_turned_y_up_is_the_y_up_take(options: dict[str, object]) ->
     _, found = forward_kinematics(turned)
     assert turned.up_axis == "y" and z_up.up_axis == "z"
     np.testing.assert_allclose(found, expected, atol=1e-9)
+
+
+def test_a_merge_of_takes_read_with_other_settings_is_skipped_and_says_why(tmp_path: Path) -> None:
+    """No blend of a Y-up take and a Z-up one is baked: the fix says which two, and how each is read."""
+    zup = frozenset(spec.name for spec in SPECS if "turn" in spec.name) - {"turn_mid_a"}
+    doc = _build(_project(tmp_path, other_convention=True, turns=zup))
+    assert "merged_turn_mid_a_turn_mid_b" not in _samples(doc)
+    skipped = [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]
+    assert any(
+        "turn_mid_a and turn_mid_b are read with different `skeleton:` settings" in d["message"]
+        for d in skipped
+    ), skipped

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -396,9 +396,13 @@ class _Fixer:
         first = found[names[0]]
         other = next((n for n in names if found[n] != first), None)
         if other is not None:
+            keys = [k for k in fields(RigSettings) if getattr(first, k.name) != getattr(found[other], k.name)]
+            said = (
+                ", ".join(f"{k.name}: {getattr(found[n], k.name)}" for k in keys) for n in (names[0], other)
+            )
             raise IncompatibleClips(
                 f"{names[0]} and {other} are read with different `skeleton:` settings "
-                f"({first.cache_key()} and {found[other].cache_key()})"
+                f"({next(said)} against {next(said)}); a blend of them would be measured with one"
             )
         return first
 
