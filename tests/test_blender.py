@@ -88,6 +88,9 @@ for job in json.loads(sys.argv[1]):
     if job["kind"] == "glb":
         bpy.ops.export_scene.gltf(filepath=job["out"], export_format="GLB")
         continue
+    if job["kind"] == "usd":  # the scene's frames (Blender's default 1-250), as an artist exports
+        bpy.ops.wm.usd_export(filepath=job["out"], export_animation=True)
+        continue
     if job["kind"] == "fbx":
         # The take spans the clip, not the scene's default 250 frames (which would hold the last pose).
         # With "scene_end", the scene ends there instead, as an artist's scene often does.
@@ -178,6 +181,24 @@ def test_blender_fbx_of_a_scene_longer_than_the_walk_measures_the_walk(
         assert measured.range_used is not None
         assert measured.range_used[0] >= 19 / 24 - 1.5 / 24 and measured.range_used[1] <= 21 / 24 + 2.0
     assert any(note.startswith(HELD_MARK) for note in measure(clip, RigSettings()).notes)
+
+
+def test_blender_usd_of_a_still_idle_is_a_still_pose_over_the_scene(tmp_path: Path, blender: None) -> None:
+    """Blender writes a pose that never moves with no time samples at all: it was read as one
+    frame and the build stopped (exit 2), where the GLB and FBX of the same idle build. It is
+    held over the stage's time codes now, as an engine imports it, and measured as a still pose."""
+    bvh = tmp_path / "idle.bvh"
+    write_bvh_clip(generate(GaitSpec("idle", duration=2.0, fps=30.0)), bvh)
+    out = tmp_path / "idle.usdc"
+    _run_blender([{"kind": "usd", "source": str(bvh), "out": str(out), "fps": 30}])
+    (clip,) = read_clips(out)
+    assert clip.frame_count >= 60 and clip.fps == pytest.approx(30.0)
+    assert any("no time samples: its pose held over the stage's time codes" in n for n in clip.notes), (
+        clip.notes
+    )
+    measured = measure(clip, RigSettings())
+    assert measured.features["speed"] == pytest.approx(0.0, abs=1e-6)
+    assert measured.features["turn_rate"] == pytest.approx(0.0, abs=1e-6)
 
 
 @pytest.mark.parametrize(

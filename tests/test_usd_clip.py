@@ -293,6 +293,39 @@ def test_keys_on_a_regular_half_step_set_the_frame_rate(tmp_path: Path) -> None:
     assert_same_rotations(clip.rotations, original.rotations)
 
 
+def _hold_first_pose(path: Path, start: float, end: float) -> None:
+    """Make the file's animation a pose with no time samples (its values as defaults) over the
+    stage's time codes ``start``..``end``, as Blender writes a still idle."""
+    stage = Usd.Stage.Open(str(path))
+    animation = UsdSkel.Animation(stage.GetPrimAtPath("/walk/Skeleton/walk"))
+    for attribute in (animation.GetRotationsAttr(), animation.GetTranslationsAttr()):
+        keys = attribute.GetTimeSamples()
+        first = attribute.Get(keys[0]) if keys else attribute.Get()
+        attribute.Clear()
+        attribute.Set(first)
+    stage.SetStartTimeCode(start)
+    stage.SetEndTimeCode(end)
+    stage.Save()
+
+
+def test_a_pose_without_time_samples_is_held_over_the_stage_range(tmp_path: Path) -> None:
+    original = walk_clip()
+    path = tmp_path / "walk.usda"
+    write_usd_clip(original, path, meters_per_unit=1.0, up_axis="y")
+    _hold_first_pose(path, 1.0, 250.0)
+    [clip] = read(path)
+    assert (clip.frame_count, clip.fps) == (250, 30.0)
+    assert any("no time samples: its pose held over the stage's time codes 1-250" in n for n in clip.notes)
+    for frame in (0, 124, 249):
+        assert_same_rotations(clip.rotations[frame], original.rotations[0])
+        np.testing.assert_allclose(clip.translations[frame], original.translations[0], atol=1e-6)
+    # A stage whose range is one time code (or none) still reads one pose, as before.
+    _hold_first_pose(path, 1.0, 1.0)
+    [clip] = read(path)
+    assert clip.frame_count == 1
+    assert any("read as a single pose" in n for n in clip.notes)
+
+
 def test_non_unit_scales_are_noted(tmp_path: Path) -> None:
     path = tmp_path / "walk.usda"
     write_usd_clip(walk_clip(), path)

@@ -343,10 +343,26 @@ def _frame_times(
     rate = float(stage.GetTimeCodesPerSecond())
     attributes = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
     samples = sorted({float(t) for attribute in attributes for t in attribute.GetTimeSamples()})
-    if not samples:
+    ranged = stage.HasAuthoredTimeCodeRange() and stage.GetEndTimeCode() >= stage.GetStartTimeCode()
+    if not samples and not (ranged and stage.GetEndTimeCode() > stage.GetStartTimeCode()):
         return [Usd.TimeCode.Default()], rate, ["the animation has no time samples: read as a single pose"]
+    if not samples:
+        # A pose held over the stage's frames (Blender writes a still idle so: values, no keys).
+        # An engine imports it over that range, and so is it read: a still pose of that length.
+        start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
+        count = int(np.floor(end - start + 1e-6)) + 1
+        if count > _MAX_FRAMES:
+            raise ClipReadError(
+                f"SkelAnimation <{animation.GetPath()}> spans {count} frames",
+                path=path,
+                hint="check startTimeCode/endTimeCode in the stage metadata",
+            )
+        note = (
+            f"the animation has no time samples: its pose held over the stage's time codes {start:g}-{end:g}"
+        )
+        return [Usd.TimeCode.Default()] * count, rate, [note]
     start, end = samples[0], samples[-1]
-    if stage.HasAuthoredTimeCodeRange() and stage.GetEndTimeCode() >= stage.GetStartTimeCode():
+    if ranged:
         start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
     step, notes = 1.0, []
     steps = np.diff(samples)
@@ -396,6 +412,9 @@ def _sample_animation(
             notes.append(f"{attribute.GetName()} not authored: the rest pose is used for it{_STRICT}")
             continue
         for frame, time in enumerate(times):
+            if frame and time == times[frame - 1]:  # a pose held over the stage's frames
+                out[frame, targets] = out[frame - 1, targets]
+                continue
             # GfQuatf is stored imaginary-first, so its array converts straight to our xyzw.
             values = _array(path, attribute, time, len(driven), width)
             out[frame, targets] = values[sources]
