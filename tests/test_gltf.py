@@ -21,7 +21,7 @@ from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
-from blendspace_pipeline.readers.gltf import read
+from blendspace_pipeline.readers.gltf import _frame_rate, read
 from blendspace_pipeline.writers.gltf import write_gltf_clip
 
 Y = np.array([0.0, 1.0, 0.0])
@@ -209,6 +209,23 @@ def test_linear_keys_are_interpolated_at_30_fps(tmp_path: Path) -> None:
     assert_same_rotations(clip.rotations[:, 1], expected)
     # Joints a channel leaves alone keep their rest transform.
     np.testing.assert_allclose(clip.translations[:, 1], np.tile([0.0, 0.25, 0.0], (7, 1)))
+
+
+@pytest.mark.parametrize(
+    ("interval", "fps"),
+    [
+        (0.1, 30.0),  # 10 fps keys sample at 30
+        (1 / 120, 120.0),
+        (float(np.float32(1 / 24)), 24.0),
+        (0.5, 24.0),  # keys every 12 frames at 24 fps or every 15 at 30: the first common rate
+        (249 / 30, 30.0),  # a still pose keyed on Blender's first and last scene frames, at 30 fps
+        (float(np.float32(249 / 30)), 30.0),
+        (249 / 24, 24.0),
+        (7.77, 30.0),  # on no common rate's frames: never sampled coarser than 30 fps
+    ],
+)
+def test_the_keys_interval_gives_the_rate_they_were_keyed_at(interval: float, fps: float) -> None:
+    assert _frame_rate([interval], []) == fps
 
 
 def test_step_keys_hold_until_the_next_key(tmp_path: Path) -> None:
