@@ -99,6 +99,8 @@ for job in json.loads(sys.argv[1]):
             first, last = actions[0].frame_range
             bpy.context.scene.frame_start = job.get("scene_start", int(round(first)))
             bpy.context.scene.frame_end = job.get("scene_end", int(round(last)))
+        if job.get("current"):  # the frame the scene shows: an armature-only FBX's only pose at rest
+            bpy.context.scene.frame_set(job["current"])
         # Every action as its own take, sampled on every frame (no curve simplification).
         bpy.ops.export_scene.fbx(filepath=job["out"], bake_anim=True, bake_anim_simplify_factor=job.get("simplify", 0.0),
                                  add_leaf_bones=False, bake_anim_use_all_actions=job.get("all_actions", False),
@@ -209,16 +211,22 @@ def test_blender_usd_of_a_still_idle_is_a_still_pose_over_the_scene(tmp_path: Pa
     ],
     ids=lambda s: s.name,
 )
-def test_blender_glb_with_generic_bone_names_measures_its_known_motion(
-    tmp_path: Path, blender: None, spec: GaitSpec
+@pytest.mark.parametrize("kind", ["glb", "fbx"])
+def test_blender_exports_with_generic_bone_names_measure_their_known_motion(
+    tmp_path: Path, blender: None, spec: GaitSpec, kind: str, request: pytest.FixtureRequest
 ) -> None:
     """A hand-built Blender rig's names (`Bone`, `Bone.001`...) say nothing of left and right: the
     legs are found by the skeleton's shape. Before, the facing came from the root bone's axis,
-    with `root` and `facing` guesses (and 90 deg off where the root bone points forward)."""
+    with `root` and `facing` guesses (and 90 deg off where the root bone points forward). The FBX
+    keeps no rest pose but the exported frame's (a stride, no mirror image of itself): its legs
+    are the chains the take moves, found without asking for a mirror image."""
+    if kind == "fbx":
+        request.getfixturevalue("fbx")
     bvh = tmp_path / "walk.bvh"
     write_bvh_clip(generate(spec), bvh)
-    out = tmp_path / "walk.glb"
-    _run_blender([{"kind": "glb", "source": str(bvh), "out": str(out), "rename": True}])
+    out = tmp_path / f"walk.{kind}"
+    # The FBX exported mid-stride (the frame the scene shows is its rest pose).
+    _run_blender([{"kind": kind, "source": str(bvh), "out": str(out), "rename": True, "current": 8}])
     (clip,) = read_clips(out)
     assert "Bone.001" in clip.skeleton.names
     measured = measure(clip, RigSettings())

@@ -30,7 +30,9 @@ from blendspace_pipeline.motion.hostile import (
     heel_bones,
     long_coat,
     on_other_skeleton,
+    posed_rest,
     renamed,
+    static_leg_copies,
     thigh_twist,
     with_joints,
     without_toes,
@@ -225,6 +227,26 @@ def test_rigs_that_look_like_other_legs_measure_as_named(
     hips = hips_by_shape(renamed(clip, "blender").skeleton, rest_positions(clip.skeleton))
     assert hips is not None
     assert (clip.skeleton.names[hips.left], clip.skeleton.names[hips.right]) == ("LeftUpLeg", "RightUpLeg")
+
+
+@pytest.mark.parametrize("static_copies", [False, True], ids=["plain", "static-leg-copies"])
+@pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
+def test_a_posed_frame_for_the_rest_pose_still_finds_the_legs(spec: GaitSpec, static_copies: bool) -> None:
+    """An armature-only FBX (and Blender's USD) keeps no rest pose but the exported frame's: a
+    stride, a heel lifted, the toes' end off the floor. The legs reach the floor at their lowest
+    joint, not only at their end (an A-pose nameless FBX found no hips: `root` and `facing`
+    guesses, a turn on the spot read 0.14 m/s). Static copies of the legs (a Rigify-like rig's
+    ORG helpers, never animated) are as near the root: the legs that move win (they had read a
+    walk backwards)."""
+    clip = generate(spec)
+    if static_copies:
+        clip = static_leg_copies(clip)
+    truth = measure(clip, SETTINGS).features
+    for frame in range(0, clip.frame_count, max(1, clip.frame_count // 8)):
+        nameless = renamed(posed_rest(clip, frame), "blender")
+        measured = measure(nameless, SETTINGS)
+        assert measured.facing == SHAPE and not measured.guesses, (frame, measured.guesses)
+        _same(measured.features, truth)
 
 
 def test_a_few_sided_helper_names_do_not_stop_the_shape_pairing() -> None:

@@ -54,10 +54,13 @@ class _Legs:
     gap: float = 0.0  # how far the legs' lowest joint is above the body's lowest (`_hanging`)
 
 
-def hips_by_shape(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None) -> ShapeHips | None:
+def hips_by_shape(
+    skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None, still: frozenset[int] = frozenset()
+) -> ShapeHips | None:
     """The hip joints of the mirrored pair of leg chains that reaches the floor, nearest the root
-    among those, or None. ``rest_pos``: the rest pose's world joint positions (J, 3)."""
-    legs = find_legs(skeleton, rest_pos, tree)
+    among those, or None. ``rest_pos``: the rest pose's world joint positions (J, 3); ``still``:
+    the joints the take never moves (see `find_legs`)."""
+    legs = find_legs(skeleton, rest_pos, tree, still)
     if legs is None:
         return None
     side = _sides(rest_pos, legs)
@@ -107,46 +110,77 @@ class _Tree:
         return chain
 
 
-def find_legs(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None) -> _Legs | None:
+def find_legs(
+    skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None, still: frozenset[int] = frozenset()
+) -> _Legs | None:
     """The mirrored pair of leg chains that reaches the floor, nearest the root among those.
-    ``tree``: the skeleton's `_Tree`, when the caller has one."""
+    ``tree``: the skeleton's `_Tree`, when the caller has one. ``still``: joints the take never
+    moves (given by a caller that has the take); of two pairs as near the root, one that moves
+    wins (a rig's static copies of its legs, IK or ORG helpers an unbaked export leaves in their
+    rest, had been taken for the legs when the exported frame stood for the rest pose: a walk
+    read backwards).
+
+    The "rest pose" of an armature-only FBX or a Blender USD is the exported frame: a stride, no
+    mirror image of itself. When no pair that the take moves is found, a caller with the take
+    (``still`` given) gets a second look that asks no mirror image: two chains of the same bones,
+    parting at the hips, one on the floor, hanging below them, that the take moves."""
     if not skeleton.has_hierarchy:
         return None
     tree = tree or _Tree(skeleton)
-    found: list[_Legs] = []
-    for children in tree.children:
-        # Each child's chain once; only chains of one length (three joints or more) that hang
-        # down to the body's lowest point can pair (hair and cloth chains by the hundred do not).
-        by_length: dict[int, list[list[int]]] = {}
-        for child in children:
-            if tree.height[child] >= 3:
-                chain = tree.chain(child, rest_pos)
-                if _reaches_floor(rest_pos, chain):
-                    by_length.setdefault(len(chain), []).append(chain)
-        for chains in by_length.values():
-            for i, chain_a in enumerate(chains):
-                for chain_b in chains[i + 1 :]:
-                    legs = _mirrored_legs(skeleton, rest_pos, chain_a, chain_b)
-                    if legs is not None:
-                        found.append(legs)
+    found = _leg_pairs(skeleton, rest_pos, tree, strict=True)
+    if still and not any(_moves(legs, still) for legs in found):
+        moving = [legs for legs in _leg_pairs(skeleton, rest_pos, tree, strict=False) if _moves(legs, still)]
+        found = moving or found
     if not found:
         return None
 
-    def rank(legs: _Legs) -> tuple[int, int, float]:
-        return int(legs.gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], -legs.length
+    def rank(legs: _Legs) -> tuple[int, int, bool, float]:
+        static = bool(still) and not _moves(legs, still)
+        return int(legs.gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], static, -legs.length
 
     return min(found, key=rank)
 
 
+def _leg_pairs(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree, *, strict: bool) -> list[_Legs]:
+    """Every pair of sibling chains that `_mirrored_legs` takes for legs (``strict``: both reach
+    the floor and are mirror images; else one reaches it, see `find_legs`)."""
+    found: list[_Legs] = []
+    for children in tree.children:
+        # Each child's chain once; only chains of one length (three joints or more) that hang
+        # down to the body's lowest point can pair (hair and cloth chains by the hundred do not).
+        by_length: dict[int, list[tuple[list[int], bool]]] = {}
+        for child in children:
+            if tree.height[child] >= 3:
+                chain = tree.chain(child, rest_pos)
+                floor = _reaches_floor(rest_pos, chain)
+                if floor or not strict:
+                    by_length.setdefault(len(chain), []).append((chain, floor))
+        for chains in by_length.values():
+            for i, (chain_a, floor_a) in enumerate(chains):
+                for chain_b, floor_b in chains[i + 1 :]:
+                    if not (floor_a or floor_b):
+                        continue
+                    legs = _mirrored_legs(skeleton, rest_pos, chain_a, chain_b, mirror=strict)
+                    if legs is not None:
+                        found.append(legs)
+    return found
+
+
+def _moves(legs: _Legs, still: frozenset[int]) -> bool:
+    return not all(j in still for j in (*legs.a, *legs.b))
+
+
 def _reaches_floor(rest_pos: FloatArray, chain: list[int]) -> bool:
-    """Whether ``chain`` ends within `_MIRROR_TOLERANCE` of its length of the body's lowest
-    point, along the way it hangs (top to end): what every leg does in a rest pose."""
+    """Whether ``chain`` reaches within `_MIRROR_TOLERANCE` of its length of the body's lowest
+    point, along the way it hangs (top to end): what every leg does in a rest pose. Its lowest
+    joint counts, not its end: an FBX has no rest pose but the exported frame's, and there the
+    toes' end may be lifted off the floor (a heel-strike pose: 10 cm above the toe joint)."""
     drop = rest_pos[chain[0]] - rest_pos[chain[-1]]
     length = float(np.linalg.norm(drop))
     if not length > 0.0:
         return False
     heights = rest_pos @ (drop / length)
-    return bool(heights[chain[-1]] - heights.min() <= _MIRROR_TOLERANCE * length)
+    return bool(heights[chain].min() - heights.min() <= _MIRROR_TOLERANCE * length)
 
 
 def _depths(parents: tuple[int, ...] | list[int]) -> list[int]:
@@ -185,12 +219,12 @@ def ankle_of(leg: list[int], rest_pos: FloatArray) -> int | None:
 
 
 def _mirrored_legs(
-    skeleton: Skeleton, rest_pos: FloatArray, chain_a: list[int], chain_b: list[int]
+    skeleton: Skeleton, rest_pos: FloatArray, chain_a: list[int], chain_b: list[int], *, mirror: bool = True
 ) -> _Legs | None:
     """The two chains as a body's legs: bone for bone the same lengths, mirror images across the
-    plane between their hips, hanging lowest with a knee above the ankle (`_hanging`). The
-    hips are where the chains part: CMU's `LHipJoint` sits on the pelvis, its `LeftUpLeg` at the
-    hip. None when they are not legs."""
+    plane between their hips (unless not ``mirror``: a posed frame), hanging lowest with a knee
+    above the ankle (`_hanging`). The hips are where the chains part: CMU's `LHipJoint` sits on
+    the pelvis, its `LeftUpLeg` at the hip. None when they are not legs."""
     if len(chain_a) != len(chain_b) or len(chain_a) < 3:
         return None
     rest = np.asarray(skeleton.rest_translations)
@@ -209,7 +243,10 @@ def _mirrored_legs(
     middle = 0.5 * (rest_pos[leg_a[0]] + rest_pos[leg_b[0]])
     points = rest_pos[leg_a]
     mirrored = points - 2.0 * ((points - middle) @ normal)[:, None] * normal
-    if float(np.linalg.norm(mirrored - rest_pos[leg_b], axis=1).max()) > _MIRROR_TOLERANCE * length:
+    if (
+        mirror
+        and float(np.linalg.norm(mirrored - rest_pos[leg_b], axis=1).max()) > _MIRROR_TOLERANCE * length
+    ):
         return None
     ankle = ankle_of(leg_a, rest_pos)
     if ankle is None or ankle != ankle_of(leg_b, rest_pos):

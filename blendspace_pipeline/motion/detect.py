@@ -182,9 +182,23 @@ def shape_hips(clip: Clip, settings: RigSettings) -> ShapeHips | None:
     """The hips by the skeleton's shape (`body_shape`), when no joint names say left and right."""
     if not clip.skeleton.has_hierarchy or find_hips(clip.skeleton) is not None:
         return None
-    return rig_memo(
-        "shape_hips", clip, settings, lambda: hips_by_shape(clip.skeleton, rest_positions(clip.skeleton))
-    )
+    still = still_joints(clip)
+
+    def compute() -> ShapeHips | None:
+        return hips_by_shape(clip.skeleton, rest_positions(clip.skeleton), still=still)
+
+    return rig_memo("shape_hips", clip, settings, compute, still)
+
+
+def still_joints(clip: Clip) -> frozenset[int]:
+    """Joints whose local transforms never change over ``clip``: rotations to 1e-6, translations
+    to 1e-5 of the rig's longest offset (an FBX bake leaves 1e-5 cm of noise on static bones)."""
+    if clip.frame_count < 2:
+        return frozenset()
+    scale = float(np.abs(clip.skeleton.rest_translations).max(initial=0.0)) or 1.0
+    turned = np.ptp(clip.rotations, axis=0).max(axis=1) > 1e-6
+    moved = np.ptp(clip.translations, axis=0).max(axis=1) > 1e-5 * scale
+    return frozenset(int(j) for j in np.flatnonzero(~(turned | moved)))
 
 
 def _two_hips(clip: Clip, left: int, right: int) -> tuple[int, int]:

@@ -638,3 +638,33 @@ def big_feet(clip: Clip, toe_length: float) -> Clip:
         rest[toe, 2] = toe_length
         translations[:, toe, 2] = toe_length
     return replace(clip, skeleton=replace(skeleton, rest_translations=rest), translations=translations)
+
+
+def posed_rest(clip: Clip, frame: int) -> Clip:
+    """``clip`` with frame ``frame``'s pose for its rest pose: what the FBX and USD readers see in
+    a Blender export, where an armature-only file keeps no rest pose but the exported frame's (a
+    walk's stride: knees bent, a heel lifted, toes off the floor)."""
+    skeleton = replace(
+        clip.skeleton,
+        rest_translations=clip.translations[frame].copy(),
+        rest_rotations=clip.rotations[frame].copy(),
+    )
+    return replace(clip, skeleton=skeleton, notes=list(clip.notes))
+
+
+def static_leg_copies(clip: Clip) -> Clip:
+    """The procedural rig with a copy of each leg hanging from the spine that never moves: the ORG
+    or IK helper chains of a Rigify-like rig, left in their rest by an unbaked export. In a posed
+    rest (`posed_rest`) they are the straightest legs there."""
+    skeleton = clip.skeleton
+    spine = skeleton.names.index("Spine")
+    extra: list[Extra] = []
+    for side in ("Left", "Right"):
+        hip = skeleton.names.index(f"{side}UpLeg")
+        to_hip = skeleton.rest_translations[hip] - skeleton.rest_translations[spine]
+        chain = [f"org_{side}_{part}" for part in ("thigh", "shin", "foot", "toe")]
+        extra.append((chain[0], "Spine", tuple(to_hip), None))
+        for parent, name, joint in zip(chain, chain[1:], ("Leg", "Foot", "Toe"), strict=False):
+            offset = skeleton.rest_translations[skeleton.names.index(f"{side}{joint}")]
+            extra.append((name, parent, tuple(offset), None))
+    return with_joints(clip, extra)

@@ -52,8 +52,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # a single-frame pose among a file's animations is left out; 14: a root that jumps in one frame;
 # 15: keys held at either end (a scene range longer than the action) are left out, and the hips of
 # rigs whose names say nothing are found by the skeleton's shape; 16: the same, as finished (15 was
-# used by intermediate versions of it, whose caches must not be read).
-MEASUREMENT_REVISION = 16
+# used by intermediate versions of it, whose caches must not be read); 17: nameless rigs whose rest
+# pose is an exported frame (armature-only FBX, Blender USD) find their legs, the moving ones first.
+MEASUREMENT_REVISION = 17
 
 
 def cache_key(
