@@ -213,6 +213,29 @@ def test_a_stated_range_is_measured_as_stated() -> None:
     assert part_options(None) == {"rest": True, "held": True}
 
 
+def test_a_stated_range_that_keeps_held_keys_says_so_and_how_to_cut_them() -> None:
+    """Measured as stated, the numbers are the range's own; the note says the hold is in them (a
+    range inside the hold read a walk as a still pose, without a word) and which range leaves it
+    out, exactly the frames the whole take's measurement uses."""
+    clip = held_keys(generate(GAITS[0]), 30, 30)
+    whole = measure(clip, SETTINGS)
+    assert whole.range_used is not None
+    inside = measure(clip, SETTINGS, (0.0, 0.8))
+    assert inside.features["speed"] == 0.0
+    assert "the stated range (0.00-0.80 s) holds one pose throughout" in " ".join(inside.notes)
+    both = measure(clip, SETTINGS, (0.5, clip.duration - 0.5))
+    (said,) = [n for n in both.notes if n.startswith("the stated range")]
+    assert "15 frames at its start and 15 frames at its end" in said
+    cut = f"[{whole.range_used[0]:.2f}, {whole.range_used[1]:.2f}]"
+    assert f"`range: {cut}` would leave them out" in said
+    assert measure(clip, SETTINGS, whole.range_used).features["speed"] == pytest.approx(
+        whole.features["speed"]
+    )
+    assert not [
+        n for n in measure(clip, SETTINGS, whole.range_used).notes if n.startswith("the stated range")
+    ]
+
+
 def test_a_mirrored_clip_is_made_of_the_frames_its_source_was_measured_on(tmp_path: Path) -> None:
     """The mirror fix read the source whole: a turn in place with 2 s of its last pose held made a
     mirrored clip with the hold in it, while blends and straightened clips left it out."""

@@ -28,6 +28,7 @@ from blendspace_pipeline.motion.contacts import plant_phases
 from blendspace_pipeline.motion.detect import (
     DetectionGuess,
     RigSettings,
+    held_ends,
     motion_part,
     resolve_facing,
     resolve_root,
@@ -130,6 +131,25 @@ def trim(clip: Clip, time_range: tuple[float, float] | None) -> Clip:
 TimeRange = tuple[float, float] | Literal["auto"] | None
 
 
+def _stated_holds(whole_pos: FloatArray, first: int, stop: int, fps: float) -> list[str]:
+    """A note when a stated `range:` (frames ``first`` to ``stop``) keeps held keys at its ends,
+    measured as stated: a range written against the DCC's timeline, off by the export's shift,
+    read a hold as part of the walk (0.6 m/s for 1.4) or as the whole of it, without a word."""
+    ends = held_ends(whole_pos[first:stop])
+    span = f"{first / fps:.2f}-{(stop - 1) / fps:.2f} s"
+    if ends is None:
+        return [f"the stated range ({span}) holds one pose throughout: measured as stated, a still pose"]
+    lead, tail = ends
+    if not lead and not tail:
+        return []
+    held = [f"{count} frames at its {end}" for count, end in ((lead, "start"), (tail, "end")) if count]
+    kept = f"[{(first + lead) / fps:.2f}, {(stop - 1 - tail) / fps:.2f}]"
+    return [
+        f"the stated range ({span}) keeps keys held ({' and '.join(held)}): measured as stated; "
+        f"`range: {kept}` would leave them out"
+    ]
+
+
 def part_options(time_range: object) -> dict[str, bool]:
     """What `detect.motion_part` leaves out of a clip cut to ``time_range`` (a manifest entry's
     `range:`), as `measure` decides it: without a range, a leading rest frame and held keys; with
@@ -176,6 +196,8 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
     part = motion_part(clip.trimmed(first, stop), whole_pos[first:stop], settings, **options)
     notes += part.notes(clip.fps)
     first, stop = first + part.first, first + part.stop
+    if explicit is not None:
+        notes += _stated_holds(whole_pos, first, stop, clip.fps)
     ground = _ground_basis(up_axis)
     if auto:
         span = steady_span(
