@@ -41,6 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from blendspace_pipeline.diagnostics import Diagnostic, Placeholder, Severity
 from blendspace_pipeline.features import FEATURE_UNITS
+from blendspace_pipeline.motion.notes import STILL_NOTE
 from blendspace_pipeline.space.placement import Axis
 from blendspace_pipeline.space.triangulate import triangle_edges
 
@@ -124,6 +125,12 @@ class SampleView:
     # Each joint's parent, an index into `joint_names` (-1: a root); () when unknown (a track set
     # without hierarchy, a view built without it).
     joint_parents: tuple[int, ...] = ()
+
+    @property
+    def holds_still(self) -> bool:
+        """Every frame measured holds one pose (a still idle, a pose exported as an animation): no
+        motion, so no frame rate or stride to disagree with another clip's."""
+        return STILL_NOTE in self.notes
 
     def __post_init__(self) -> None:
         # Frozen dataclasses only stop attribute assignment; the mappings need freezing too.

@@ -18,7 +18,9 @@ SAME_RATE = 0.02
 class InconsistentFps(Rule):
     """Clips sampled at different rates blend fine in engines but usually reveal a mixed export
     (a 30 fps clip among 120 fps mocap); generated clips and cadence sync assume one rate. A
-    layer's clips are compared with the main set's rate.
+    layer's clips are compared with the main set's rate. A still pose has no rate to disagree
+    with: a glTF idle keyed on its first and last frames tells none (its two keys fit 24 fps as
+    well as the set's 30).
     """
 
     slug = "inconsistent-fps"
@@ -27,11 +29,12 @@ class InconsistentFps(Rule):
     summary = "clips with different frame rates"
 
     def check(self, space: SpaceView) -> Iterator[Diagnostic]:
-        rates = Counter(round(s.fps, 3) for s in space.samples if not s.generated and s.fps > 0)
+        moving = [s for s in space.samples if not s.generated and not s.holds_still]
+        rates = Counter(round(s.fps, 3) for s in moving if s.fps > 0)
         if not rates:
             return
         common = most_agreed(rates, float, SAME_RATE)
-        odd = [s.name for s in space.samples if not close(s.fps, common, SAME_RATE) and not s.generated]
+        odd = [s.name for s in moving if not close(s.fps, common, SAME_RATE)]
         if odd:
             yield self.report(
                 f"most clips run at {common:g} fps but {', '.join(odd)} do not",
@@ -40,7 +43,11 @@ class InconsistentFps(Rule):
             )
         # A layer's clips are blended pose for pose with the main space's, at its rate.
         for layer in space.layers:
-            off = [s for s in layer.samples if not close(s.fps, common, SAME_RATE) and not s.generated]
+            off = [
+                s
+                for s in layer.samples
+                if not close(s.fps, common, SAME_RATE) and not s.generated and not s.holds_still
+            ]
             if off:
                 yield self.report(
                     f"{layer.kind} layer {layer.name!r}: {', '.join(f'{s.name} ({s.fps:g} fps)' for s in off)} "

@@ -23,11 +23,12 @@ from blendspace_pipeline.motion.body_shape import hips_by_shape
 from blendspace_pipeline.motion.clip import Clip, forward_kinematics, rest_positions
 from blendspace_pipeline.motion.clip_ops.errors import IncompatibleClips
 from blendspace_pipeline.motion.clip_ops.mirror import mirror_clip, mirror_pairs
-from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.detect import RigSettings, still_joints
 from blendspace_pipeline.motion.hostile import (
     NAMELESS,
     big_feet,
     heel_bones,
+    keyed_everywhere,
     long_coat,
     on_other_skeleton,
     posed_rest,
@@ -229,24 +230,46 @@ def test_rigs_that_look_like_other_legs_measure_as_named(
     assert (clip.skeleton.names[hips.left], clip.skeleton.names[hips.right]) == ("LeftUpLeg", "RightUpLeg")
 
 
-@pytest.mark.parametrize("static_copies", [False, True], ids=["plain", "static-leg-copies"])
+RIG_VARIANTS: dict[str, Callable[[Clip], Clip]] = {
+    "plain": lambda clip: clip,
+    "static-leg-copies": static_leg_copies,
+    "static-copies-first": lambda clip: static_leg_copies(clip, parent="Hips", first=True),
+    "keyed-everywhere": keyed_everywhere,
+}
+
+
+@pytest.mark.parametrize("variant", list(RIG_VARIANTS))
 @pytest.mark.parametrize("spec", GAITS, ids=lambda s: s.name)
-def test_a_posed_frame_for_the_rest_pose_still_finds_the_legs(spec: GaitSpec, static_copies: bool) -> None:
+def test_a_posed_frame_for_the_rest_pose_still_finds_the_legs(spec: GaitSpec, variant: str) -> None:
     """An armature-only FBX (and Blender's USD) keeps no rest pose but the exported frame's: a
     stride, a heel lifted, the toes' end off the floor. The legs reach the floor at their lowest
     joint, not only at their end (an A-pose nameless FBX found no hips: `root` and `facing`
     guesses, a turn on the spot read 0.14 m/s). Static copies of the legs (a Rigify-like rig's
     ORG helpers, never animated) are as near the root: the legs that move win (they had read a
-    walk backwards)."""
-    clip = generate(spec)
-    if static_copies:
-        clip = static_leg_copies(clip)
+    walk backwards), also in a true rest pose where the copies tie with the legs and come first.
+    A take that keys every bone (nothing holds exactly still) finds them too."""
+    clip = RIG_VARIANTS[variant](generate(spec))
     truth = measure(clip, SETTINGS).features
+    rested = measure(renamed(clip, "blender"), SETTINGS)
+    assert rested.facing == SHAPE and not rested.guesses, rested.guesses
+    _same(rested.features, truth)
     for frame in range(0, clip.frame_count, max(1, clip.frame_count // 8)):
         nameless = renamed(posed_rest(clip, frame), "blender")
         measured = measure(nameless, SETTINGS)
         assert measured.facing == SHAPE and not measured.guesses, (frame, measured.guesses)
         _same(measured.features, truth)
+
+
+def test_a_moving_leg_and_its_static_copy_are_no_pair() -> None:
+    """Without a mirror image to ask for, a leg and the static copy of the other leg (same bones,
+    both hanging from the hips) could pair: both legs of a pair must move."""
+    clip = static_leg_copies(generate(GAITS[0]), parent="Hips")
+    for frame in range(0, clip.frame_count, 7):
+        posed = posed_rest(clip, frame)
+        hips = hips_by_shape(posed.skeleton, rest_positions(posed.skeleton), still=still_joints(posed))
+        assert hips is not None
+        names = {clip.skeleton.names[hips.left], clip.skeleton.names[hips.right]}
+        assert names == {"LeftUpLeg", "RightUpLeg"}, (frame, names)
 
 
 def test_a_few_sided_helper_names_do_not_stop_the_shape_pairing() -> None:

@@ -41,8 +41,16 @@ AXES = (
 FIXES = "fixes: {mirror: true, axis_clips: true, too_close: merge}\n"
 
 
-def _project(root: Path, other_convention: bool, turns: frozenset[str] = frozenset()) -> Path:
-    """``turns``: the takes exported in the turns' convention (default: every name with "turn")."""
+def _project(
+    root: Path,
+    other_convention: bool,
+    turns: frozenset[str] = frozenset(),
+    *,
+    top: str = "{up: y, units: m}",
+    turns_say: str | None = None,
+) -> Path:
+    """``turns``: the takes exported in the turns' folder (default: every name with "turn");
+    ``other_convention``: those Z-up in centimetres, their entry saying so (or ``turns_say``)."""
     for folder in ("straight", "turns"):
         (root / folder).mkdir(parents=True)
     for spec in SPECS:
@@ -52,15 +60,15 @@ def _project(root: Path, other_convention: bool, turns: frozenset[str] = frozens
         else:
             clip = generate_planted(spec)
         write_bvh_clip(clip, root / ("turns" if turn else "straight") / f"{spec.name}.bvh")
-    turns = "  - path: turns/*.bvh\n"
-    if other_convention:
-        turns += "    skeleton: {up: z, units: cm}\n"
+    entry = "  - path: turns/*.bvh\n"
+    said = turns_say or ("{up: z, units: cm}" if other_convention else None)
+    if said:
+        entry += f"    skeleton: {said}\n"
     manifest = root / "manifest.yaml"
     manifest.write_text(
-        "schema_version: 1\nname: loco\n"
-        "skeleton: {up: y, units: m}\n"
+        f"schema_version: 1\nname: loco\nskeleton: {top}\n"
         "clips:\n  - path: straight/*.bvh\n    ignore: [{rule: in-place-clip, reason: idle}]\n"
-        + turns
+        + entry
         + AXES
         + FIXES
     )
@@ -133,3 +141,14 @@ def test_a_merge_of_takes_read_with_other_settings_is_skipped_and_says_why(tmp_p
         "turn_mid_a and turn_mid_b are read with different `skeleton:` settings" in d["message"]
         for d in skipped
     ), skipped
+
+
+def test_takes_stated_as_they_read_merge_with_takes_left_to_detection(tmp_path: Path) -> None:
+    """`up: y, units: m` on one entry and nothing on the other read the same Y-up metre takes: the
+    merge compares what each read (stated, or measured), not what the manifest wrote."""
+    split = frozenset(spec.name for spec in SPECS if "turn" in spec.name) - {"turn_mid_a"}
+    doc = _build(
+        _project(tmp_path, other_convention=False, turns=split, top="{}", turns_say="{up: y, units: m}")
+    )
+    assert "merged_turn_mid_a_turn_mid_b" in _samples(doc)
+    assert not [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]

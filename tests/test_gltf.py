@@ -221,7 +221,7 @@ def test_linear_keys_are_interpolated_at_30_fps(tmp_path: Path) -> None:
         (249 / 30, 30.0),  # a still pose keyed on Blender's first and last scene frames, at 30 fps
         (float(np.float32(249 / 30)), 30.0),
         (249 / 24, 24.0),
-        (7.77, 30.0),  # on no common rate's frames: never sampled coarser than 30 fps
+        (7.7777, 30.0),  # on no common rate's frames: never sampled coarser than 30 fps
     ],
 )
 def test_the_keys_interval_gives_the_rate_they_were_keyed_at(interval: float, fps: float) -> None:

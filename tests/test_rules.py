@@ -157,6 +157,22 @@ def test_clip_level_rules() -> None:
     assert run_rule(InconsistentFps, space) == []
 
 
+def test_inconsistent_fps_leaves_still_poses_out() -> None:
+    """A still idle read at 24 fps among 30 fps takes (its two keys tell no rate) is no mixed
+    export; a walk at 24 fps is."""
+    from dataclasses import replace
+
+    from blendspace_pipeline.motion.notes import STILL_NOTE
+
+    space = space_from_positions({"idle": (0, 0), "walk": (0, 1.4), "run": (0, 3.5), "turn": (30, 1.4)})
+    idle = replace(space.samples[0], fps=24.0, notes=(STILL_NOTE,))
+    assert idle.holds_still and not space.samples[1].holds_still
+    assert run_rule(InconsistentFps, replace(space, samples=(idle, *space.samples[1:]))) == []
+    walk = replace(space.samples[1], fps=24.0)
+    found = run_rule(InconsistentFps, replace(space, samples=(idle, walk, *space.samples[2:])))
+    assert [f.clips for f in found] == [("walk",)]
+
+
 def _on_skeletons(changes: dict[str, str | None]) -> SpaceView:
     """KEY_SET's positions, each clip with the joints of a procedural walk changed as ``changes``
     says (`hostile.SKELETON_CHANGES`; None: the walk's own skeleton)."""

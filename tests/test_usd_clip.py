@@ -319,6 +319,18 @@ def test_a_pose_without_time_samples_is_held_over_the_stage_range(tmp_path: Path
     for frame in (0, 124, 249):
         assert_same_rotations(clip.rotations[frame], original.rotations[0])
         np.testing.assert_allclose(clip.translations[frame], original.translations[0], atol=1e-6)
+    # A Skeleton prim that moves while its animation holds one pose: the motion is read.
+    stage = Usd.Stage.Open(str(path))
+    mover = UsdGeom.Xformable(stage.GetPrimAtPath("/walk/Skeleton")).AddTranslateOp(opSuffix="carry")
+    mover.Set(Gf.Vec3d(0.0, 0.0, 0.0), 1.0)
+    mover.Set(Gf.Vec3d(0.0, 0.0, 1.45), 250.0)
+    stage.Save()
+    [carried] = read(path)
+    _, world = forward_kinematics(carried)
+    assert world[-1, 0, 2] - world[0, 0, 2] == pytest.approx(1.45, abs=1e-4)
+    stage.GetPrimAtPath("/walk/Skeleton").RemoveProperty("xformOp:translate:carry")
+    UsdGeom.Xformable(stage.GetPrimAtPath("/walk/Skeleton")).ClearXformOpOrder()
+    stage.Save()
     # A stage whose range is one time code (or none) still reads one pose, as before.
     _hold_first_pose(path, 1.0, 1.0)
     [clip] = read(path)

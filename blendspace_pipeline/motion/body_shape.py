@@ -12,6 +12,10 @@ Which of the two is the left one: in the rest pose, the toes point forward from 
 forward is (left hip - right hip) x up, up being from the ankles to the hips. Without toes (a chain
 of hip, knee and ankle), or with feet that point nowhere clear, the sides stay open and the legs'
 motion decides (`detect._shape_facing`).
+
+Some files keep no rest pose but the exported frame's (an armature-only FBX, Blender's USD): a
+stride, no mirror image of itself. Given the take's still joints, the legs are then looked for
+again without the mirror image: two chains of the same bones that the take moves (`find_legs`).
 """
 
 from __future__ import annotations
@@ -55,11 +59,11 @@ class _Legs:
 
 
 def hips_by_shape(
-    skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None, still: frozenset[int] = frozenset()
+    skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None, still: frozenset[int] | None = None
 ) -> ShapeHips | None:
-    """The hip joints of the mirrored pair of leg chains that reaches the floor, nearest the root
-    among those, or None. ``rest_pos``: the rest pose's world joint positions (J, 3); ``still``:
-    the joints the take never moves (see `find_legs`)."""
+    """The hip joints of the pair of leg chains `find_legs` finds, or None. ``rest_pos``: the rest
+    pose's world joint positions (J, 3); ``still``: the joints the take never moves (None: no
+    take, the rest pose alone decides)."""
     legs = find_legs(skeleton, rest_pos, tree, still)
     if legs is None:
         return None
@@ -111,39 +115,39 @@ class _Tree:
 
 
 def find_legs(
-    skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None, still: frozenset[int] = frozenset()
+    skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree | None = None, still: frozenset[int] | None = None
 ) -> _Legs | None:
     """The mirrored pair of leg chains that reaches the floor, nearest the root among those.
     ``tree``: the skeleton's `_Tree`, when the caller has one. ``still``: joints the take never
-    moves (given by a caller that has the take); of two pairs as near the root, one that moves
-    wins (a rig's static copies of its legs, IK or ORG helpers an unbaked export leaves in their
-    rest, had been taken for the legs when the exported frame stood for the rest pose: a walk
-    read backwards).
+    moves (None: the caller has no take); of two pairs as near the root, one that moves wins (a
+    rig's static copies of its legs, IK or ORG helpers an unbaked export leaves in their rest,
+    had been taken for the legs when the exported frame stood for the rest pose: a walk read
+    backwards).
 
     The "rest pose" of an armature-only FBX or a Blender USD is the exported frame: a stride, no
     mirror image of itself. When no pair that the take moves is found, a caller with the take
-    (``still`` given) gets a second look that asks no mirror image: two chains of the same bones,
-    parting at the hips, one on the floor, hanging below them, that the take moves."""
+    gets a second look that asks no mirror image: two chains of the same bones, parting at the
+    hips, one on the floor, hanging below them, both moved by the take."""
     if not skeleton.has_hierarchy:
         return None
     tree = tree or _Tree(skeleton)
     found = _leg_pairs(skeleton, rest_pos, tree, strict=True)
-    if still and not any(_moves(legs, still) for legs in found):
+    if still is not None and not any(_moves(legs, still) for legs in found):
         moving = [legs for legs in _leg_pairs(skeleton, rest_pos, tree, strict=False) if _moves(legs, still)]
         found = moving or found
     if not found:
         return None
 
     def rank(legs: _Legs) -> tuple[int, int, bool, float]:
-        static = bool(still) and not _moves(legs, still)
+        static = still is not None and not _moves(legs, still)
         return int(legs.gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], static, -legs.length
 
     return min(found, key=rank)
 
 
 def _leg_pairs(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree, *, strict: bool) -> list[_Legs]:
-    """Every pair of sibling chains that `_mirrored_legs` takes for legs (``strict``: both reach
-    the floor and are mirror images; else one reaches it, see `find_legs`)."""
+    """Every pair of sibling chains that `_leg_pair` takes for legs (``strict``: both reach the
+    floor and are mirror images; else one reaches it, see `find_legs`)."""
     found: list[_Legs] = []
     for children in tree.children:
         # Each child's chain once; only chains of one length (three joints or more) that hang
@@ -160,14 +164,16 @@ def _leg_pairs(skeleton: Skeleton, rest_pos: FloatArray, tree: _Tree, *, strict:
                 for chain_b, floor_b in chains[i + 1 :]:
                     if not (floor_a or floor_b):
                         continue
-                    legs = _mirrored_legs(skeleton, rest_pos, chain_a, chain_b, mirror=strict)
+                    legs = _leg_pair(skeleton, rest_pos, chain_a, chain_b, mirror=strict)
                     if legs is not None:
                         found.append(legs)
     return found
 
 
 def _moves(legs: _Legs, still: frozenset[int]) -> bool:
-    return not all(j in still for j in (*legs.a, *legs.b))
+    """Whether the take moves both legs (a joint of each): a moving leg beside its static copy is
+    no pair."""
+    return any(j not in still for j in legs.a) and any(j not in still for j in legs.b)
 
 
 def _reaches_floor(rest_pos: FloatArray, chain: list[int]) -> bool:
@@ -218,7 +224,7 @@ def ankle_of(leg: list[int], rest_pos: FloatArray) -> int | None:
     return len(leg) - 1
 
 
-def _mirrored_legs(
+def _leg_pair(
     skeleton: Skeleton, rest_pos: FloatArray, chain_a: list[int], chain_b: list[int], *, mirror: bool = True
 ) -> _Legs | None:
     """The two chains as a body's legs: bone for bone the same lengths, mirror images across the

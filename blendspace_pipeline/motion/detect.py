@@ -7,6 +7,7 @@ can report what was used, and every automatic guess can be overridden in the man
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field, replace
 from typing import TypeVar, cast
@@ -124,8 +125,9 @@ def rig_memo(kind: str, clip: Clip, settings: RigSettings, compute: Callable[[],
     )
     if skeleton.has_hierarchy and find_hips(skeleton) is None:
         # Hips found by the rest pose's shape (`body_shape`): rigs that share numbered names
-        # (`joint_01`...) and parents may still be other bodies.
-        key += (skeleton.rest_translations.tobytes(), skeleton.rest_rotations.tobytes())
+        # (`joint_01`...) and parents may still be other bodies, and the legs are the chains the
+        # take moves where the rest pose is a posed frame (every kind that builds on the hips).
+        key += (skeleton.rest_translations.tobytes(), skeleton.rest_rotations.tobytes(), still_joints(clip))
     try:
         return cast(_T, _RIG_MEMO[key])
     except KeyError:
@@ -182,23 +184,36 @@ def shape_hips(clip: Clip, settings: RigSettings) -> ShapeHips | None:
     """The hips by the skeleton's shape (`body_shape`), when no joint names say left and right."""
     if not clip.skeleton.has_hierarchy or find_hips(clip.skeleton) is not None:
         return None
-    still = still_joints(clip)
+    return rig_memo(
+        "shape_hips",
+        clip,
+        settings,
+        lambda: hips_by_shape(clip.skeleton, rest_positions(clip.skeleton), still=still_joints(clip)),
+    )
 
-    def compute() -> ShapeHips | None:
-        return hips_by_shape(clip.skeleton, rest_positions(clip.skeleton), still=still)
 
-    return rig_memo("shape_hips", clip, settings, compute, still)
+# The last clip `still_joints` looked at, and its answer: `measure` asks for one clip several
+# times (every rig memo of a nameless rig), at the cost of a pass over the whole take each.
+_last_still: tuple[weakref.ref[Clip], frozenset[int]] | None = None
 
 
 def still_joints(clip: Clip) -> frozenset[int]:
-    """Joints whose local transforms never change over ``clip``: rotations to 1e-6, translations
-    to 1e-5 of the rig's longest offset (an FBX bake leaves 1e-5 cm of noise on static bones)."""
-    if clip.frame_count < 2:
-        return frozenset()
-    scale = float(np.abs(clip.skeleton.rest_translations).max(initial=0.0)) or 1.0
-    turned = np.ptp(clip.rotations, axis=0).max(axis=1) > 1e-6
-    moved = np.ptp(clip.translations, axis=0).max(axis=1) > 1e-5 * scale
-    return frozenset(int(j) for j in np.flatnonzero(~(turned | moved)))
+    """Joints whose local transforms never change over ``clip``: rotations to 1e-6 (q and -q are
+    one rotation), translations to 1e-5 of the rig's longest offset (an FBX bake leaves 1e-5 cm
+    of noise on static bones). Empty for a clip of one frame: nothing tells."""
+    global _last_still
+    if _last_still is not None and _last_still[0]() is clip:
+        return _last_still[1]
+    still: frozenset[int] = frozenset()
+    if clip.frame_count >= 2:
+        scale = float(np.abs(clip.skeleton.rest_translations).max(initial=0.0)) or 1.0
+        # Each key in the first key's hemisphere, so that q and -q do not count as a turn.
+        signs = np.where(np.sum(clip.rotations * clip.rotations[:1], axis=-1) < 0.0, -1.0, 1.0)
+        turned = np.ptp(clip.rotations * signs[..., None], axis=0).max(axis=1) > 1e-6
+        moved = np.ptp(clip.translations, axis=0).max(axis=1) > 1e-5 * scale
+        still = frozenset(int(j) for j in np.flatnonzero(~(turned | moved)))
+    _last_still = (weakref.ref(clip), still)
+    return still
 
 
 def _two_hips(clip: Clip, left: int, right: int) -> tuple[int, int]:

@@ -652,19 +652,31 @@ def posed_rest(clip: Clip, frame: int) -> Clip:
     return replace(clip, skeleton=skeleton, notes=list(clip.notes))
 
 
-def static_leg_copies(clip: Clip) -> Clip:
-    """The procedural rig with a copy of each leg hanging from the spine that never moves: the ORG
-    or IK helper chains of a Rigify-like rig, left in their rest by an unbaked export. In a posed
-    rest (`posed_rest`) they are the straightest legs there."""
+def static_leg_copies(clip: Clip, parent: str = "Spine", first: bool = False) -> Clip:
+    """The procedural rig with a copy of each leg hanging from ``parent`` (Spine or Hips) that
+    never moves: the ORG or IK helper chains of a Rigify-like rig, left in their rest by an
+    unbaked export. In a posed rest (`posed_rest`) they are the straightest legs there; hung
+    from the Hips and listed ``first`` (before the legs), they tie with the legs in every way but
+    the take's motion."""
     skeleton = clip.skeleton
-    spine = skeleton.names.index("Spine")
+    top = skeleton.names.index(parent)
     extra: list[Extra] = []
     for side in ("Left", "Right"):
         hip = skeleton.names.index(f"{side}UpLeg")
-        to_hip = skeleton.rest_translations[hip] - skeleton.rest_translations[spine]
+        to_hip = skeleton.rest_translations[hip] - (skeleton.rest_translations[top] if top else 0.0)
         chain = [f"org_{side}_{part}" for part in ("thigh", "shin", "foot", "toe")]
-        extra.append((chain[0], "Spine", tuple(to_hip), None))
-        for parent, name, joint in zip(chain, chain[1:], ("Leg", "Foot", "Toe"), strict=False):
+        extra.append((chain[0], parent, tuple(to_hip), "LeftUpLeg" if first else None))
+        for above, name, joint in zip(chain, chain[1:], ("Leg", "Foot", "Toe"), strict=False):
             offset = skeleton.rest_translations[skeleton.names.index(f"{side}{joint}")]
-            extra.append((name, parent, tuple(offset), None))
+            extra.append((name, above, tuple(offset), "LeftUpLeg" if first else None))
     return with_joints(clip, extra)
+
+
+def keyed_everywhere(clip: Clip, radians: float = 1e-4) -> Clip:
+    """``clip`` with every joint turning by a wobble of ``radians`` (a mocap bake keys every bone,
+    and no joint holds exactly still): nothing tells static helpers from the body by stillness."""
+    frames, joints = clip.rotations.shape[:2]
+    phase = np.arange(frames)[:, None] * 0.37 + np.arange(joints)[None, :]
+    wobble = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), radians * np.sin(phase))
+    rotations = quat.multiply(clip.rotations, wobble)
+    return replace(clip, rotations=quat.normalize(rotations), notes=list(clip.notes))

@@ -49,7 +49,7 @@ from blendspace_pipeline.motion.quaternions import FloatArray
 from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.cache import write_atomic
 from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_chunks
-from blendspace_pipeline.pipeline.measure_stage import entry_settings, rig_settings
+from blendspace_pipeline.pipeline.measure_stage import clip_settings
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.space.document import BlendQualityDoc, BlendSpaceDocument, Grid
 from blendspace_pipeline.space.model import BlendSpace, Sample
@@ -109,12 +109,22 @@ class PreparedSamples:
         ones (a generated clip's entry carries its sources' keys), as it was measured."""
         if index not in self.settings:
             top = self.space.manifest.model.skeleton
-            self.settings[index] = rig_settings(entry_settings(top, self.space.samples[index].clip.entry))
+            self.settings[index] = clip_settings(top, self.space.samples[index].clip.entry)
         return self.settings[index]
+
+    def played_as(self, index: int) -> RigSettings:
+        """`settings_of`, for the clip as it is played: a Z-up take is turned Y up beside Y-up ones,
+        as an engine imports it (`_prepare`)."""
+        settings = self.settings_of(index)
+        return (
+            replace(settings, up="y")
+            if self.space.samples[index].clip.measurement.up_axis == "z"
+            else settings
+        )
 
     def __getitem__(self, index: int) -> PreparedClip | None:
         if index not in self.cache:
-            self.cache[index] = self._prepare(self.space.samples[index], self.settings_of(index))
+            self.cache[index] = self._prepare(self.space.samples[index], self.played_as(index))
         return self.cache[index]
 
     def key(self, index: int) -> str:
@@ -156,8 +166,8 @@ class PreparedSamples:
         if clip is None or clip.frame_count < 4:
             return None
         contacts = FootContacts.from_json(m.contacts, clip.duration)
-        if m.up_axis == "z":  # played beside Y-up takes, as an engine imports it: turned Y up
-            clip, settings = y_up(clip), replace(settings, up="y")
+        if m.up_axis == "z":  # see `played_as`
+            clip = y_up(clip)
         try:
             return prepare(clip, settings, m.meters_per_unit, contacts)
         except IncompatibleClips:  # an X-up take: measured, but not played (as an unreadable one)
@@ -177,7 +187,7 @@ def _play_point(
     ready = [c for c in clips if c is not None]
     if len(ready) < len(clips) or not all(ready[0].clip.skeleton.same_layout(c.clip.skeleton) for c in ready):
         return None  # other joint names or hierarchy: no engine blends them (see `inconsistent-skeleton`)
-    played = play(ready, weights, rates, prepared.settings_of(indices[0]), fps=SKATE_FPS)
+    played = play(ready, weights, rates, prepared.played_as(indices[0]), fps=SKATE_FPS)
     return played.foot_sliding
 
 

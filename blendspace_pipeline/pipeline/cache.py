@@ -53,8 +53,10 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 15: keys held at either end (a scene range longer than the action) are left out, and the hips of
 # rigs whose names say nothing are found by the skeleton's shape; 16: the same, as finished (15 was
 # used by intermediate versions of it, whose caches must not be read); 17: nameless rigs whose rest
-# pose is an exported frame (armature-only FBX, Blender USD) find their legs, the moving ones first.
-MEASUREMENT_REVISION = 17
+# pose is an exported frame (armature-only FBX, Blender USD) find their legs, the moving ones first;
+# 18: the same where every joint moves, both legs of a pair moving, and a stated range's note on the
+# held keys it keeps (17 was used by intermediate versions).
+MEASUREMENT_REVISION = 18
 
 
 def cache_key(

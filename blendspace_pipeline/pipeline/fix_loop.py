@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +37,7 @@ from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure, part_options, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
-from blendspace_pipeline.pipeline.measure_stage import entry_settings, rig_settings
+from blendspace_pipeline.pipeline.measure_stage import clip_settings, entry_settings
 from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.provenance import Provenance, read_provenance
@@ -303,12 +303,8 @@ class _Fixer:
         weights = (db / (da + db), da / (da + db))  # the nearer clip weighs more; they sum to 1
         label = f"{space.axes[1 - axis_index].feature}_{point[1 - axis_index]:g}".replace("-", "m")
         name = self._unique(_safe(f"axis_{label}"))
-        clip = blend_clips(
-            [self._clip(a.name), self._clip(b.name)],
-            weights,
-            name=name,
-            settings=self._shared_settings((a.name, b.name)),
-        )
+        settings = self._shared_settings((a.name, b.name))  # before either file is read
+        clip = blend_clips([self._clip(a.name), self._clip(b.name)], weights, name=name, settings=settings)
         note = f"{weights[0]:.3f} x {a.name} + {weights[1]:.3f} x {b.name}"
         return self._add(clip, "crossing-axis", (a.name, b.name), note, weights)
 
@@ -339,9 +335,10 @@ class _Fixer:
         if len(loose) < 2:
             raise _Refused(f"{self._why_key(kept)}; too-close never merges a key clip away")
         name = self._unique(_safe("merged_" + "_".join(sorted(loose))))
+        settings = self._shared_settings(sorted(loose))  # before any file is read
         clips = [self._clip(n) for n in sorted(loose)]
         weights = [1.0 / len(clips)] * len(clips)
-        clip = blend_clips(clips, weights, name=name, settings=self._shared_settings(sorted(loose)))
+        clip = blend_clips(clips, weights, name=name, settings=settings)
         for member in loose:
             self.state.removed[member] = f"too-close: merged into {name}"
         return self._add(clip, "too-close", tuple(sorted(loose)), "equal-weight merge", tuple(weights))
@@ -388,23 +385,39 @@ class _Fixer:
         """How sample ``name``'s clip is read: its entry's `skeleton:` keys over the top-level
         ones. Its fixes make, cut and measure clips with these (with the top-level ones, the mirror
         of a Z-up take under `skeleton: {up: z}` had been measured Y-up)."""
-        return rig_settings(entry_settings(self.model.skeleton, self._entry(name)))
+        return clip_settings(self.model.skeleton, self._entry(name))
+
+    def _read_as(self, name: str) -> RigSettings:
+        """`_settings` with the up axis and unit its measurement read (an `up: auto` that found
+        Y reads as `up: y` does)."""
+        settings = self._settings(name)
+        if name in self.state.generated:
+            measured = self.state.generated[name].measured
+            found = measured.measurement if measured is not None else None
+        else:
+            found = self.sources[name].measurement
+        if found is None:
+            return settings
+        return replace(settings, up=found.up_axis, units=float(found.meters_per_unit))
 
     def _shared_settings(self, names: Sequence[str]) -> RigSettings:
-        """The settings of samples ``names``, blended into one clip: they must read alike."""
-        found = {n: self._settings(n) for n in names}
-        first = found[names[0]]
-        other = next((n for n in names if found[n] != first), None)
-        if other is not None:
-            keys = [k for k in fields(RigSettings) if getattr(first, k.name) != getattr(found[other], k.name)]
-            said = (
-                ", ".join(f"{k.name}: {getattr(found[n], k.name)}" for k in keys) for n in (names[0], other)
-            )
-            raise IncompatibleClips(
-                f"{names[0]} and {other} are read with different `skeleton:` settings "
-                f"({next(said)} against {next(said)}); a blend of them would be measured with one"
-            )
-        return first
+        """One way to read samples ``names``, blended into one clip: each key as the samples that
+        state it state it (the others leave it `auto`), the up axis and unit as measured. Raises
+        `IncompatibleClips` when two samples are read differently: the blend would be measured
+        one way, and one of them misread."""
+        found = {n: self._read_as(n) for n in names}
+        shared: dict[str, object] = {}
+        for key in (k.name for k in fields(RigSettings)):
+            stated = [(n, getattr(found[n], key)) for n in names if getattr(found[n], key) != "auto"]
+            for b, y in stated[1:]:
+                a, x = stated[0]
+                if _differ(x, y):
+                    raise IncompatibleClips(
+                        f"{a} and {b} are read with different `skeleton:` settings ({key}: {x} against "
+                        f"{y}); a blend of them would be measured one way"
+                    )
+            shared[key] = stated[0][1] if stated else "auto"
+        return RigSettings(**shared)  # type: ignore[arg-type]
 
     def _pairs(self, source: str) -> dict[str, str] | None:
         tokens = entry_settings(self.model.skeleton, self._entry(source)).mirror
@@ -564,6 +577,14 @@ class _Fixer:
 
 class _Refused(Exception):
     """A fix that must not be made (it would lose a key clip): becomes a fix-rejected finding."""
+
+
+def _differ(x: object, y: object) -> bool:
+    """Two values of a rig setting that read a clip differently (units measured as floats agree
+    within a millionth)."""
+    if isinstance(x, float) and isinstance(y, float):
+        return abs(x - y) > 1e-6 * max(abs(x), abs(y))
+    return x != y
 
 
 def _normalise(space: BlendSpace, point: Sequence[float]) -> tuple[float, float]:

@@ -68,6 +68,11 @@ def entry_settings(top: SkeletonSettings, entry: ClipEntry) -> SkeletonSettings:
     )
 
 
+def clip_settings(top: SkeletonSettings, entry: ClipEntry) -> RigSettings:
+    """How the clips of ``entry`` are read, measured and remade (fixes, the foot-skate map)."""
+    return rig_settings(entry_settings(top, entry))
+
+
 def measure_file(
     path: Path, settings: RigSettings, time_range: TimeRange, project: Path | None = None
 ) -> Measured:
@@ -157,7 +162,7 @@ def measure_files(
     job_list: list[Job] = []
     for f in files:
         if id(f.entry) not in settings_of:
-            settings_of[id(f.entry)] = rig_settings(entry_settings(top, f.entry))
+            settings_of[id(f.entry)] = clip_settings(top, f.entry)
         job_list.append(Job(f.path, settings_of[id(f.entry)], _range(f.entry), loaded.directory, store))
     results = _measure_all(job_list, cache.Pack(loaded.path, part), jobs, progress)
     results = _one_answer_per_skeleton(job_list, results)

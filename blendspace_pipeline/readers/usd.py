@@ -344,24 +344,10 @@ def _frame_times(
     attributes = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
     samples = sorted({float(t) for attribute in attributes for t in attribute.GetTimeSamples()})
     ranged = stage.HasAuthoredTimeCodeRange() and stage.GetEndTimeCode() >= stage.GetStartTimeCode()
-    if not samples and not (ranged and stage.GetEndTimeCode() > stage.GetStartTimeCode()):
+    held = not samples and ranged and stage.GetEndTimeCode() > stage.GetStartTimeCode()
+    if not samples and not held:
         return [Usd.TimeCode.Default()], rate, ["the animation has no time samples: read as a single pose"]
-    if not samples:
-        # A pose held over the stage's frames (Blender writes a still idle so: values, no keys).
-        # An engine imports it over that range, and so is it read: a still pose of that length.
-        start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
-        count = int(np.floor(end - start + 1e-6)) + 1
-        if count > _MAX_FRAMES:
-            raise ClipReadError(
-                f"SkelAnimation <{animation.GetPath()}> spans {count} frames",
-                path=path,
-                hint="check startTimeCode/endTimeCode in the stage metadata",
-            )
-        note = (
-            f"the animation has no time samples: its pose held over the stage's time codes {start:g}-{end:g}"
-        )
-        return [Usd.TimeCode.Default()] * count, rate, [note]
-    start, end = samples[0], samples[-1]
+    start, end = (samples[0], samples[-1]) if samples else (0.0, 0.0)
     if ranged:
         start, end = float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
     step, notes = 1.0, []
@@ -372,6 +358,13 @@ def _frame_times(
         step = float(steps[0])
         notes.append(
             f"keys every {step:g} time codes: read at {rate / step:g} fps (timeCodesPerSecond {rate:g})"
+        )
+    if held:
+        # A pose held over the stage's frames (Blender writes a still idle so: values, no keys).
+        # An engine imports it over that range, and so is it read: a still pose of that length
+        # (sampled at every time code: a Skeleton prim's own transform may still move).
+        notes.append(
+            f"the animation has no time samples: its pose held over the stage's time codes {start:g}-{end:g}"
         )
     count = int(np.floor((end - start) / step + 1e-6)) + 1
     if count > _MAX_FRAMES:
@@ -411,10 +404,10 @@ def _sample_animation(
         if not attribute.HasAuthoredValue():
             notes.append(f"{attribute.GetName()} not authored: the rest pose is used for it{_STRICT}")
             continue
+        if attribute.GetNumTimeSamples() == 0:  # one value over every frame (a held pose)
+            out[:, targets] = _array(path, attribute, Usd.TimeCode.Default(), len(driven), width)[sources]
+            continue
         for frame, time in enumerate(times):
-            if frame and time == times[frame - 1]:  # a pose held over the stage's frames
-                out[frame, targets] = out[frame - 1, targets]
-                continue
             # GfQuatf is stored imaginary-first, so its array converts straight to our xyzw.
             values = _array(path, attribute, time, len(driven), width)
             out[frame, targets] = values[sources]
