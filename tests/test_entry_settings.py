@@ -152,3 +152,29 @@ def test_takes_stated_as_they_read_merge_with_takes_left_to_detection(tmp_path: 
     )
     assert "merged_turn_mid_a_turn_mid_b" in _samples(doc)
     assert not [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("where", ["entry", "top"])
+def test_a_dropped_rest_frame_is_dropped_once(tmp_path: Path, where: str) -> None:
+    """`tpose: drop` cuts the source's rest frame; the clips made from it start on motion and keep
+    every frame (their measurement cut one more, and said it was a rest pose)."""
+    (tmp_path / "clips").mkdir()
+    for spec in SPECS[:5]:
+        clip = generate_planted(spec)
+        if spec.name == "turn_in_place_left":
+            clip = generate(spec, tpose_first_frame=True)
+        write_bvh_clip(clip, tmp_path / "clips" / f"{spec.name}.bvh")
+    drop = "    skeleton: {tpose: drop}\n" if where == "entry" else ""
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\n"
+        + ("skeleton: {tpose: drop}\n" if where == "top" else "")
+        + "clips:\n  - path: clips/*.bvh\n    ignore: [{rule: in-place-clip, reason: idle}]\n"
+        + drop
+        + AXES
+        + "fixes: {mirror: true}\n"
+    )
+    samples = _samples(_build(manifest))
+    source, mirror = samples["turn_in_place_left"]["clip"], samples["turn_in_place_right"]["clip"]
+    assert mirror["frames"] == source["frames"] and mirror["duration"] == source["duration"]
+    assert not [n for n in mirror["notes"] if "rest/T-pose" in n], mirror["notes"]

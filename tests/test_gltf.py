@@ -221,7 +221,9 @@ def test_linear_keys_are_interpolated_at_30_fps(tmp_path: Path) -> None:
         (249 / 30, 30.0),  # a still pose keyed on Blender's first and last scene frames, at 30 fps
         (float(np.float32(249 / 30)), 30.0),
         (249 / 24, 24.0),
-        (7.7777, 30.0),  # on no common rate's frames: never sampled coarser than 30 fps
+        (249 / 25, 25.0),  # the closest fit, not the first: 24 fits 9.96 s within a tenth of a frame too
+        (249 * 1.001 / 30, 30000 / 1001),  # a 29.97 fps scene's still (read at 120 before)
+        (7.9873, 30.0),  # on no common rate's frames (0.24 of a frame off at best): never coarser than 30 fps
     ],
 )
 def test_the_keys_interval_gives_the_rate_they_were_keyed_at(interval: float, fps: float) -> None:

@@ -236,6 +236,22 @@ def test_a_stated_range_that_keeps_held_keys_says_so_and_how_to_cut_them() -> No
     ]
 
 
+@pytest.mark.parametrize("fps", [24.0, 30.0, 60.0, 120.0, 240.0])
+def test_the_range_a_stated_range_note_suggests_leaves_every_held_key_out(fps: float) -> None:
+    """At 120 fps and more, two decimals named a held frame again (the suggested range kept one
+    at each end, and read 1.375 m/s for 1.4)."""
+    spec = GaitSpec("walk", speed=1.4, duration=1.0, fps=fps)
+    clip = held_keys(generate(spec), round(0.17 * fps), round(0.08 * fps))
+    whole = measure(clip, SETTINGS)
+    stated = measure(clip, SETTINGS, (0.0, clip.duration))
+    (said,) = [n for n in stated.notes if n.startswith("the stated range")]
+    suggested = said.split("`range: [")[1].split("]")[0]
+    start, end = (float(v) for v in suggested.split(", "))
+    cut = measure(clip, SETTINGS, (start, end))
+    assert not [n for n in cut.notes if n.startswith("the stated range")], cut.notes
+    assert cut.features["speed"] == pytest.approx(whole.features["speed"], abs=1e-9)
+
+
 def test_a_mirrored_clip_is_made_of_the_frames_its_source_was_measured_on(tmp_path: Path) -> None:
     """The mirror fix read the source whole: a turn in place with 2 s of its last pose held made a
     mirrored clip with the hold in it, while blends and straightened clips left it out."""

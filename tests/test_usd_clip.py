@@ -338,6 +338,32 @@ def test_a_pose_without_time_samples_is_held_over_the_stage_range(tmp_path: Path
     assert any("read as a single pose" in n for n in clip.notes)
 
 
+def test_a_pose_without_keys_beside_a_keyed_take_stays_one_pose(tmp_path: Path) -> None:
+    """Beside a keyed take, an animation without keys is a pose (a `TPose` action): one frame,
+    which the build leaves out, as before; held over the stage's frames it became a sample."""
+    original = walk_clip()
+    path = tmp_path / "walk.usda"
+    write_usd_clip(original, path)
+    joints = [
+        "Hips",
+        "Hips/LeftUpLeg",
+        "Hips/LeftUpLeg/LeftLeg",
+        "Hips/RightUpLeg",
+        "Hips/RightUpLeg/RightLeg",
+    ]
+    stage = Usd.Stage.Open(str(path))
+    pose = UsdSkel.Animation.Define(stage, "/walk/TPose")
+    pose.CreateJointsAttr(Vt.TokenArray(joints))
+    pose.CreateRotationsAttr().Set(Vt.QuatfArray.FromNumpy(original.rotations[0, :5].astype(np.float32)))
+    pose.CreateTranslationsAttr().Set(
+        Vt.Vec3fArray.FromNumpy(original.translations[0, :5].astype(np.float32))
+    )
+    stage.Save()
+    walk, tpose = read(path)
+    assert (walk.name, walk.frame_count) == ("walk/walk", FRAMES)
+    assert (tpose.name, tpose.frame_count) == ("walk/TPose", 1)
+
+
 def test_non_unit_scales_are_noted(tmp_path: Path) -> None:
     path = tmp_path / "walk.usda"
     write_usd_clip(walk_clip(), path)

@@ -11,6 +11,7 @@ in place. Units and the up axis come from the file, the manifest, or detection (
 from __future__ import annotations
 
 import hashlib
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -136,14 +137,21 @@ def _stated_holds(whole_pos: FloatArray, first: int, stop: int, fps: float) -> l
     measured as stated: a range written against the DCC's timeline, off by the export's shift,
     read a hold as part of the walk (0.6 m/s for 1.4) or as the whole of it, without a word."""
     ends = held_ends(whole_pos[first:stop])
+    # Decimals enough to name a frame at this rate (a quarter frame): at 120 fps two decimals
+    # named a held frame again.
+    places = max(2, math.ceil(math.log10(2.0 * fps)))
     span = f"{first / fps:.2f}-{(stop - 1) / fps:.2f} s"
     if ends is None:
         return [f"the stated range ({span}) holds one pose throughout: measured as stated, a still pose"]
     lead, tail = ends
     if not lead and not tail:
         return []
-    held = [f"{count} frames at its {end}" for count, end in ((lead, "start"), (tail, "end")) if count]
-    kept = f"[{(first + lead) / fps:.2f}, {(stop - 1 - tail) / fps:.2f}]"
+    held = [
+        f"{count} frame{'s' if count > 1 else ''} at its {end}"
+        for count, end in ((lead, "start"), (tail, "end"))
+        if count
+    ]
+    kept = f"[{(first + lead) / fps:.{places}f}, {(stop - 1 - tail) / fps:.{places}f}]"
     return [
         f"the stated range ({span}) keeps keys held ({' and '.join(held)}): measured as stated; "
         f"`range: {kept}` would leave them out"

@@ -30,7 +30,7 @@ import numpy as np
 
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.manifest.models import ClipEntry, MirrorTokens
+from blendspace_pipeline.manifest.models import ClipEntry, MirrorTokens, SkeletonSettings
 from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
 from blendspace_pipeline.motion.clip_ops.blend import measured_part
@@ -370,8 +370,9 @@ class _Fixer:
             animation = str(measured.extra.get("animation", name))
             clips = read_clips(measured.source, project=self.original.manifest.directory)
             clip = next((c for c in clips if c.name == animation), clips[0])
+            read_as = clip_settings(self.model.skeleton, measured.entry)  # its own `tpose:` too
             self.clips[name] = measured_part(
-                trim(clip, measured.time_range), self._settings(name), **part_options(measured.entry.range)
+                trim(clip, measured.time_range), read_as, **part_options(measured.entry.range)
             )
         return self.clips[name]
 
@@ -382,10 +383,12 @@ class _Fixer:
         return self.sources[name].entry
 
     def _settings(self, name: str) -> RigSettings:
-        """How sample ``name``'s clip is read: its entry's `skeleton:` keys over the top-level
-        ones. Its fixes make, cut and measure clips with these (with the top-level ones, the mirror
-        of a Z-up take under `skeleton: {up: z}` had been measured Y-up)."""
-        return clip_settings(self.model.skeleton, self._entry(name))
+        """How the fixes treat sample ``name``'s clip, once `_clip` has cut it to its measured
+        frames: its entry's `skeleton:` keys over the top-level ones (with the top-level ones, the
+        mirror of a Z-up take under `skeleton: {up: z}` had been measured Y-up), and `tpose: keep`:
+        the clip starts on its first frame of motion (a `drop` cut a real frame off each clip made
+        from it, and off each clip made)."""
+        return replace(clip_settings(self.model.skeleton, self._entry(name)), tpose="keep")
 
     def _read_as(self, name: str) -> RigSettings:
         """`_settings` with the up axis and unit its measurement read (an `up: auto` that found
@@ -559,14 +562,14 @@ class _Fixer:
         if generated.measured is None:
             name = generated.clip.name
             try:
-                measurement = measure(generated.clip, self._settings(generated.sources[0]))
+                measurement = measure(generated.clip, self._settings(name))
             except InputError as error:  # a generated clip that cannot be measured is our bug
                 raise RuntimeError(f"generated clip {name} cannot be measured: {error}") from error
             generated.measured = MeasuredClip(
                 name,
                 Path("clips") / f"{name}.usda",
-                # Its sources' `skeleton:` keys: the maps play it, and later fixes cut it, with them.
-                ClipEntry(path=f"clips/{name}.usda", skeleton=self._entry(generated.sources[0]).skeleton),
+                # Its sources' `skeleton:` keys (but `tpose`, see `_settings`): the maps play it with them.
+                ClipEntry(path=f"clips/{name}.usda", skeleton=_made_from(self._entry(generated.sources[0]))),
                 generated.line,
                 generated.column,
                 measurement,
@@ -577,6 +580,11 @@ class _Fixer:
 
 class _Refused(Exception):
     """A fix that must not be made (it would lose a key clip): becomes a fix-rejected finding."""
+
+
+def _made_from(entry: ClipEntry) -> SkeletonSettings:
+    """The `skeleton:` keys of a clip made from ``entry``'s clips: the same, with no rest frame."""
+    return (entry.skeleton or SkeletonSettings()).model_copy(update={"tpose": "keep"})
 
 
 def _differ(x: object, y: object) -> bool:

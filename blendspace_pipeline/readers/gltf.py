@@ -53,7 +53,7 @@ _NORMALIZED = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 _CHANNEL_WIDTHS = {"translation": 3, "rotation": 4, "scale": 3}
 # Key rates snap to these when the keys are one of them (or a whole fraction of one).
-_COMMON_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0)
+_COMMON_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 24000 / 1001, 30000 / 1001, 60000 / 1001)
 _MIN_RATE = 24.0
 _MAX_RATE = 240.0
 _MAX_FRAMES = 1_000_000
@@ -573,14 +573,23 @@ def _frame_rate(intervals: list[float], notes: list[str]) -> float:
         return 30.0
     interval = min(intervals)
     rate = 1.0 / interval
-    for common in _COMMON_RATES:
+
+    def frames_off(common: float) -> float | None:
+        """How far the interval is from a whole number of ``common``'s frames, when within 1 %
+        of it and a tenth of a frame at most (keys far apart, a still pose's two 249 frames
+        apart, fitted every rate within 1 %), else None."""
         multiple = common / rate
-        # Within 1 % of a whole number of frames, but never more than a tenth of a frame: keys
-        # far apart (a still pose's two, 249 frames apart in Blender's 30 fps scene) fitted
-        # every rate within 1 % and read at 24 fps, beside the scene's 30 fps takes.
-        if round(multiple) >= 1 and abs(multiple - round(multiple)) < 0.01 * min(round(multiple), 10):
-            chosen = common
-            break
+        whole = round(multiple)
+        off = abs(multiple - whole)
+        return off if whole >= 1 and off < 0.01 * min(whole, 10) else None
+
+    # The rate that fits best (the first listed on a tie: 24 for keys every 0.5 s, 12 frames at
+    # 24 or 15 at 30), NTSC rates among them (a 29.97 fps scene's still read at 120).
+    fits = [
+        (off, index) for index, common in enumerate(_COMMON_RATES) if (off := frames_off(common)) is not None
+    ]
+    if fits:
+        chosen = _COMMON_RATES[min(fits)[1]]
     else:
         # Irregular keys: their own rate, but never so coarse that interpolated arcs are lost.
         chosen = 30.0 if rate < _MIN_RATE else min(round(rate, 3), _MAX_RATE)

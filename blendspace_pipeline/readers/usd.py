@@ -171,10 +171,18 @@ def _read_stage(path: Path, stage: Usd.Stage) -> list[Clip]:
             "used only when all its joints are joints of the Skeleton",
         )
     names = _clip_names(path, [animation for _, animation in pairs])
+    # A pose without keys is held over the stage's frames only where nothing in the file is keyed
+    # (a still idle exported alone); beside keyed takes it is a pose (a `TPose` action), one frame.
+    keyed = any(_keyed(animation) for _, animation in pairs)
     return [
-        _read_clip(path, stage, name, skel, animation)
+        _read_clip(path, stage, name, skel, animation, hold=not keyed)
         for name, (skel, animation) in zip(names, pairs, strict=True)
     ]
+
+
+def _keyed(animation: UsdSkel.Animation) -> bool:
+    attributes = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
+    return any(attribute.GetNumTimeSamples() > 0 for attribute in attributes)
 
 
 def _all_prims(stage: Usd.Stage) -> Iterator[Usd.Prim]:
@@ -234,10 +242,16 @@ class _Layout:
 
 
 def _read_clip(
-    path: Path, stage: Usd.Stage, name: str, skel: UsdSkel.Skeleton, animation: UsdSkel.Animation
+    path: Path,
+    stage: Usd.Stage,
+    name: str,
+    skel: UsdSkel.Skeleton,
+    animation: UsdSkel.Animation,
+    *,
+    hold: bool,
 ) -> Clip:
     layout = _read_layout(path, skel)
-    times, fps, notes = _frame_times(path, stage, animation)
+    times, fps, notes = _frame_times(path, stage, animation, hold=hold)
     rotations, translations = _sample_animation(path, animation, layout, times, notes)
     skeleton = _fold_prim_transform(skel, layout.skeleton, times, rotations, translations, notes)
     meters_per_unit, up_axis = _stage_units(stage, notes)
@@ -337,14 +351,15 @@ def _decompose(matrices: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray
 
 
 def _frame_times(
-    path: Path, stage: Usd.Stage, animation: UsdSkel.Animation
+    path: Path, stage: Usd.Stage, animation: UsdSkel.Animation, *, hold: bool = True
 ) -> tuple[list[Usd.TimeCode], float, list[str]]:
-    """Time codes to sample, and the frame rate they stand for."""
+    """Time codes to sample, and the frame rate they stand for. ``hold``: an animation without
+    keys is its pose held over the stage's time codes (else one frame)."""
     rate = float(stage.GetTimeCodesPerSecond())
     attributes = (animation.GetTranslationsAttr(), animation.GetRotationsAttr(), animation.GetScalesAttr())
     samples = sorted({float(t) for attribute in attributes for t in attribute.GetTimeSamples()})
     ranged = stage.HasAuthoredTimeCodeRange() and stage.GetEndTimeCode() >= stage.GetStartTimeCode()
-    held = not samples and ranged and stage.GetEndTimeCode() > stage.GetStartTimeCode()
+    held = hold and not samples and ranged and stage.GetEndTimeCode() > stage.GetStartTimeCode()
     if not samples and not held:
         return [Usd.TimeCode.Default()], rate, ["the animation has no time samples: read as a single pose"]
     start, end = (samples[0], samples[-1]) if samples else (0.0, 0.0)
