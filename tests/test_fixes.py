@@ -28,6 +28,9 @@ DRAFT = (
     GaitSpec("walk_turn_right", speed=1.4, turn_rate=-50.0, duration=1.5),
     GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
 )
+# With a slow walk on the speed axis: the axis clip at the left/right turns' crossing (1.4 m/s)
+# is a blend of two gaits (slow walk, run). Between the idle and the run it plants no foot.
+WITH_SLOW_WALK = (*DRAFT, GaitSpec("walk_slow", speed=0.5, duration=1.8, stride_length=0.9))
 AXES = "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 100}\n  y: {feature: speed, min: -3, max: 6, divisions: 90}\n"
 RANGES = (360.0, 9.0)
 
@@ -83,7 +86,7 @@ def test_mirrored_names() -> None:
 
 
 def test_fixes_fill_the_set_and_no_edge_crosses_a_main_axis(tmp_path: Path) -> None:
-    manifest = _project(tmp_path)
+    manifest = _project(tmp_path, WITH_SLOW_WALK)
     before = _tree(tmp_path / "clips")
     doc = _build(manifest, tmp_path / "out")
     generated = {s["name"]: s for s in doc["samples"] if s["generated"]}  # type: ignore[attr-defined]
@@ -100,7 +103,7 @@ def test_fixes_fill_the_set_and_no_edge_crosses_a_main_axis(tmp_path: Path) -> N
 
 
 def test_a_generated_clip_measures_where_it_was_placed_on_its_own(tmp_path: Path) -> None:
-    doc = _build(_project(tmp_path), tmp_path / "out")
+    doc = _build(_project(tmp_path, WITH_SLOW_WALK), tmp_path / "out")
     made = [s for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
     assert any(s["fix"] == "crossing-axis" for s in made), "expected an interpolated axis clip"
     for sample in made:
@@ -315,3 +318,14 @@ def test_a_mirror_is_of_the_merged_clip_not_of_a_take_the_merge_removed(tmp_path
     assert not [s for s in mirrors if s["name"].startswith(("mid_a", "mid_b"))]
     merged, mirror = made["merged_mid_a_mid_b"]["position"], made["merged_mid_a_mid_b_mirror"]["position"]
     assert mirror == [-merged[0], merged[1]]
+
+
+def test_an_axis_clip_that_plants_no_foot_is_not_baked(tmp_path: Path) -> None:
+    """Between the idle and the run (no slow walk on the axis) the interpolated clip's feet never
+    touch the floor (18-42 cm up, the body tilted 28 deg) while its root motion reads right: it
+    was baked without a word. Now the fix is rejected and says why; the crossing stays reported."""
+    doc = _build(_project(tmp_path), tmp_path / "out")
+    assert not [s for s in doc["samples"] if s["fix"] == "crossing-axis"]  # type: ignore[attr-defined]
+    rejected = [d["message"] for d in doc["diagnostics"] if d["rule"] == "fix-rejected"]  # type: ignore[attr-defined]
+    assert any("never plants a foot where idle and run_fwd do" in m for m in rejected), rejected
+    assert _crossing_edges(doc)

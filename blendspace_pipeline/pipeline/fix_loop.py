@@ -35,7 +35,7 @@ from blendspace_pipeline.motion.clip import Clip
 from blendspace_pipeline.motion.clip_ops import IncompatibleClips, blend_clips, mirror_clip, straighten_clip
 from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings
-from blendspace_pipeline.motion.measure import measure, part_options, trim
+from blendspace_pipeline.motion.measure import Measurement, measure, part_options, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
 from blendspace_pipeline.pipeline.measure_stage import clip_settings, entry_settings
 from blendspace_pipeline.pipeline.placeholders import converge_placeholders
@@ -257,6 +257,9 @@ class _Fixer:
         lost = sorted(n for n in self.keys if n not in present and n not in replaced)
         if lost:
             return f"it would drop {self._why_key(lost)}"
+        floating = self._floating(present)
+        if floating is not None:
+            return floating
         old, new = score(before), score(after)
         if new < old:
             return None
@@ -265,6 +268,28 @@ class _Fixer:
             f"warnings {old[1]} → {new[1]}, "
             f"coverage {-old[2] * 100:.1f}% → {-new[2] * 100:.1f}%"
         )
+
+    def _floating(self, present: set[str]) -> str | None:
+        """Why a clip made in the space plants no foot while each of its sources does (a blend of
+        a standing idle and a run: feet in the air, the body tilted, its root motion right): an
+        engine plays that blend there too, but a baked clip must be one to use. None otherwise."""
+        for name, generated in sorted(self.state.generated.items()):
+            measured = generated.measured
+            if name not in present or measured is None or _plants(measured.measurement):
+                continue
+            sources = [self._measurement(n) for n in generated.sources]
+            if all(m is not None and _plants(m) for m in sources):
+                return (
+                    f"{name}, the clip it makes, never plants a foot where {' and '.join(generated.sources)} "
+                    "do (they share no gait: author a clip there)"
+                )
+        return None
+
+    def _measurement(self, name: str) -> Measurement | None:
+        if name in self.state.generated:
+            measured = self.state.generated[name].measured
+            return measured.measurement if measured is not None else None
+        return self.sources[name].measurement
 
     def _mirror(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         data = diagnostic.fix_data or {}
@@ -394,11 +419,7 @@ class _Fixer:
         """`_settings` with the up axis and unit its measurement read (an `up: auto` that found
         Y reads as `up: y` does)."""
         settings = self._settings(name)
-        if name in self.state.generated:
-            measured = self.state.generated[name].measured
-            found = measured.measurement if measured is not None else None
-        else:
-            found = self.sources[name].measurement
+        found = self._measurement(name)
         if found is None:
             return settings
         return replace(settings, up=found.up_axis, units=float(found.meters_per_unit))
@@ -580,6 +601,13 @@ class _Fixer:
 
 class _Refused(Exception):
     """A fix that must not be made (it would lose a key clip): becomes a fix-rejected finding."""
+
+
+def _plants(measurement: Measurement) -> bool:
+    """Whether a clip plants a foot at all (a rig without feet found: no contacts, counted as
+    planting, nothing to say)."""
+    contacts = measurement.contacts
+    return contacts is None or any(spans for spans in contacts.values())
 
 
 def _made_from(entry: ClipEntry) -> SkeletonSettings:
