@@ -142,6 +142,33 @@ def test_builds_are_byte_identical_and_idempotent(tmp_path: Path, monkeypatch: p
     assert not [s for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]
 
 
+def test_a_fix_no_better_until_a_later_fix_is_tried_again_so_the_next_build_adds_nothing(
+    tmp_path: Path,
+) -> None:
+    """The mirror of the running left turn does not improve the space before the turn in place is
+    mirrored, and does after: each fix was tried once, so the next build, with the
+    generated clips fed back, added them. A fix not kept is tried again after a later one is kept,
+    and said once."""
+    specs = (
+        GaitSpec("idle", duration=2.0),
+        GaitSpec("walk_fwd", speed=1.4, duration=2.0),
+        GaitSpec("run_fwd", speed=4.0, duration=1.6, stride_length=2.6),
+        GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1, duration=2.0),
+        GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
+        GaitSpec("walk_turn_left", speed=1.4, turn_rate=50.0, duration=2.0),
+        GaitSpec("run_turn_left", speed=4.0, turn_rate=60.0, duration=1.6, stride_length=2.6),
+    )
+    manifest = _project(tmp_path, specs, "fixes: {mirror: true, axis_clips: true}\n")
+    first = _build(manifest, tmp_path / "a")
+    made = {s["name"] for s in first["samples"] if s["generated"]}  # type: ignore[attr-defined]
+    assert {"turn_in_place_right", "run_turn_right"} <= made, made  # the second one was the next build's
+    verdicts = [d["message"] for d in first["diagnostics"] if d["rule"].startswith("fix-")]  # type: ignore[attr-defined]
+    assert len(verdicts) == len(set(verdicts)), verdicts
+    shutil.copytree(tmp_path / "a" / "clips", tmp_path / "clips", dirs_exist_ok=True)
+    again = _build(manifest, tmp_path / "b")
+    assert not [s for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]
+
+
 @pytest.mark.parametrize(
     ("specs", "fixes"),
     [

@@ -13,7 +13,8 @@ warnings; else as many of both and a larger covered share of the axis rectangle.
 would drop an authored key clip (`key_clips`: on a main axis, or a corner of the convex hull) is
 never kept, whatever the counts. A fix not kept is an info finding `fix-rejected` saying why.
 
-The loop is bounded (`MAX_ROUNDS`, each fix tried once) and deterministic (fixes are tried in
+The loop is bounded (`MAX_ROUNDS`, `MAX_ATTEMPTS`; a fix is tried again only after another was
+kept) and deterministic (fixes are tried in
 sorted order, names are derived from the sources), and it is idempotent: a clip of an earlier
 build fed back as a source is recognised by the provenance in its file
 (`readers.provenance`), never by where it sits, and a set that already holds it triggers no fix.
@@ -74,16 +75,21 @@ class FixState:
 
     generated: dict[str, GeneratedClip] = field(default_factory=dict)
     removed: dict[str, str] = field(default_factory=dict)  # sample name -> why
-    skipped: list[Diagnostic] = field(default_factory=list)
-    rejected: list[Diagnostic] = field(default_factory=list)  # fix-rejected findings
+    # fix-skipped and fix-rejected findings, by the finding whose fix they are about (the last
+    # word on a fix tried again)
+    verdicts: dict[tuple[object, ...], Diagnostic] = field(default_factory=dict)
 
 
 def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]:
     """Apply the manifest's `fixes:` one at a time, keeping each only if it improves the space."""
     state = FixState()
     fixer = _Fixer(space, state)
-    tried: set[tuple[object, ...]] = set()
-    attempts = 0
+    # Each fix is tried once per state of the space: one not kept is tried again once another
+    # fix was kept after it (the mirror of a walking turn, no better before the turn in place
+    # was mirrored, is better after; the next build, with that mirror fed back as a source, made
+    # it, and a build was not idempotent).
+    tried: dict[tuple[object, ...], int] = {}  # fix -> how many fixes were kept when it was tried
+    kept_fixes = attempts = 0
     for _ in range(MAX_ROUNDS):
         progress = False
         for kind in ORDER:
@@ -91,21 +97,29 @@ def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]
                 continue
             while attempts < MAX_ATTEMPTS:
                 diagnostic = next(
-                    (d for d in fixer.todo(space, kind) if _attempt_key(kind, d) not in tried), None
+                    (d for d in fixer.todo(space, kind) if tried.get(_attempt_key(kind, d), -1) < kept_fixes),
+                    None,
                 )
                 if diagnostic is None:
                     break
-                tried.add(_attempt_key(kind, diagnostic))
+                tried[_attempt_key(kind, diagnostic)] = kept_fixes
                 attempts += 1
                 space, kept = fixer.attempt(space, kind, diagnostic)
+                kept_fixes += kept
                 progress |= kept
         if not progress:
             break
     converge_placeholders(space, jobs=jobs)
-    space.diagnostics = sorted(
-        space.diagnostics + state.skipped + state.rejected + _removals(space, fixer), key=Diagnostic.sort_key
-    )
+    # What was said of a fix whose finding a later fix cured is no longer so.
+    present = {_about(d) for d in space.diagnostics}
+    said = [verdict for about, verdict in state.verdicts.items() if about in present]
+    space.diagnostics = sorted(space.diagnostics + said + _removals(space, fixer), key=Diagnostic.sort_key)
     return space, state
+
+
+def _about(diagnostic: Diagnostic) -> tuple[object, ...]:
+    position = None if diagnostic.position is None else tuple(round(v, 6) for v in diagnostic.position)
+    return (diagnostic.rule, tuple(sorted(diagnostic.clips)), position)
 
 
 def _attempt_key(kind: str, diagnostic: Diagnostic) -> tuple[object, ...]:
@@ -526,7 +540,8 @@ class _Fixer:
     def _skip(
         self, diagnostic: Diagnostic, why: str, hint: str = "author the clip at the placeholder instead"
     ) -> None:
-        self.state.skipped.append(
+        self._say(
+            diagnostic,
             Diagnostic(
                 rule="fix-skipped",
                 code="BS903",
@@ -538,15 +553,22 @@ class _Fixer:
                 path=diagnostic.path,
                 line=diagnostic.line,
                 column=diagnostic.column,
-            )
+            ),
         )
+
+    def _say(self, diagnostic: Diagnostic, verdict: Diagnostic) -> None:
+        """Keep ``verdict`` on ``diagnostic``'s fix, in place of what an earlier try said."""
+        about = _about(diagnostic)
+        self.state.verdicts.pop(about, None)
+        self.state.verdicts[about] = verdict
 
     def _why_key(self, names: Sequence[str]) -> str:
         listed = ", ".join(f"{n} ({self.keys[n]})" for n in names)
         return f"{listed} {'is a key clip' if len(names) == 1 else 'are key clips'} of the authored set"
 
     def _reject(self, diagnostic: Diagnostic, kind: str, why: str) -> None:
-        self.state.rejected.append(
+        self._say(
+            diagnostic,
             Diagnostic(
                 rule="fix-rejected",
                 code="BS907",
@@ -559,7 +581,7 @@ class _Fixer:
                 path=diagnostic.path,
                 line=diagnostic.line,
                 column=diagnostic.column,
-            )
+            ),
         )
 
     # -- rebuilding -----------------------------------------------------------------------------
