@@ -14,10 +14,10 @@ would drop an authored key clip (`key_clips`: on a main axis, or a corner of the
 never kept, whatever the counts. A fix not kept is an info finding `fix-rejected` saying why.
 
 The loop is bounded (`MAX_ROUNDS`, `MAX_ATTEMPTS`; a fix is tried again only after another was
-kept) and deterministic (fixes are tried in
-sorted order, names are derived from the sources), and it is idempotent: a clip of an earlier
-build fed back as a source is recognised by the provenance in its file
-(`readers.provenance`), never by where it sits, and a set that already holds it triggers no fix.
+kept) and deterministic (fixes are tried in sorted order, names are derived from the sources), and
+it is idempotent: a clip of an earlier build fed back as a source is recognised by the provenance
+in its file (`readers.provenance`), never by where it sits, and a set that already holds it
+triggers no fix.
 """
 
 from __future__ import annotations
