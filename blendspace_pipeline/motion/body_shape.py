@@ -56,6 +56,7 @@ class _Legs:
     ankle: int  # index of the ankle in both
     length: float
     gap: float = 0.0  # how far the legs' lowest joint is above the body's lowest (`_hanging`)
+    mirrored: bool = True  # mirror images of each other in the rest pose (see `_leg_pair`)
 
 
 def hips_by_shape(
@@ -125,22 +126,32 @@ def find_legs(
     backwards).
 
     The "rest pose" of an armature-only FBX or a Blender USD is the exported frame: a stride, no
-    mirror image of itself. When no pair that the take moves is found, a caller with the take
-    gets a second look that asks no mirror image: two chains of the same bones, parting at the
-    hips, one on the floor, hanging below them, both moved by the take."""
+    mirror image of itself. A caller with the take gets a second look that asks no mirror image:
+    two chains of the same bones, parting at the hips, one on the floor, hanging below them, both
+    moved by the take. Pairs rank by how near the floor they reach, then the nearest the root,
+    moving before static, with feet before without (a coat's chains hang straight), mirror images
+    before the others, the longest."""
     if not skeleton.has_hierarchy:
         return None
     tree = tree or _Tree(skeleton)
     found = _leg_pairs(skeleton, rest_pos, tree, strict=True)
-    if still is not None and not any(_moves(legs, still) for legs in found):
-        moving = [legs for legs in _leg_pairs(skeleton, rest_pos, tree, strict=False) if _moves(legs, still)]
-        found = moving or found
+    if still is not None:
+        # The second look, beside the first: a posed frame's legs (on the floor, no mirror image)
+        # outrank a moving coat's front and back chains (mirror images, their hem above it).
+        mirrored = {(legs.a[0], legs.b[0]) for legs in found}
+        found += [
+            legs
+            for legs in _leg_pairs(skeleton, rest_pos, tree, strict=False)
+            if (legs.a[0], legs.b[0]) not in mirrored and _moves(legs, still)
+        ]
     if not found:
         return None
 
-    def rank(legs: _Legs) -> tuple[int, int, bool, float]:
+    def rank(legs: _Legs) -> tuple[int, int, bool, bool, bool, float]:
         static = still is not None and not _moves(legs, still)
-        return int(legs.gap / (_FLOOR_STEP * legs.length)), tree.depth[legs.a[0]], static, -legs.length
+        bucket = int(legs.gap / (_FLOOR_STEP * legs.length))
+        footless = legs.ankle == len(legs.a) - 1  # no turn into a foot: a coat's straight chains
+        return bucket, tree.depth[legs.a[0]], static, footless, not legs.mirrored, -legs.length
 
     return min(found, key=rank)
 
@@ -249,15 +260,13 @@ def _leg_pair(
     middle = 0.5 * (rest_pos[leg_a[0]] + rest_pos[leg_b[0]])
     points = rest_pos[leg_a]
     mirrored = points - 2.0 * ((points - middle) @ normal)[:, None] * normal
-    if (
-        mirror
-        and float(np.linalg.norm(mirrored - rest_pos[leg_b], axis=1).max()) > _MIRROR_TOLERANCE * length
-    ):
+    images = float(np.linalg.norm(mirrored - rest_pos[leg_b], axis=1).max()) <= _MIRROR_TOLERANCE * length
+    if mirror and not images:
         return None
     ankle = ankle_of(leg_a, rest_pos)
     if ankle is None or ankle != ankle_of(leg_b, rest_pos):
         return None
-    return _hanging(rest_pos, _Legs(leg_a, leg_b, ankle, length))
+    return _hanging(rest_pos, _Legs(leg_a, leg_b, ankle, length, mirrored=images))
 
 
 def _up(rest_pos: FloatArray, legs: _Legs) -> tuple[FloatArray, float]:

@@ -577,9 +577,11 @@ def heel_bones(clip: Clip) -> Clip:
     )
 
 
-def long_coat(clip: Clip, hem: float = 0.03, segments: int = 3) -> Clip:
+def long_coat(clip: Clip, hem: float = 0.03, segments: int = 3, sway: float = 0.0) -> Clip:
     """Four cloth chains hanging from the procedural rig's hips to ``hem`` metres above the floor,
-    front and back on each side: mirror images of each other, longer than the legs."""
+    front and back on each side: mirror images of each other, longer than the legs. ``sway``:
+    degrees each cloth joint swings to and fro over the take (a baked cloth simulation), else
+    they ride along, static."""
     top = 0.10  # the waist, above the hips
     floor = float(np.min(_rest_heights(clip)))
     step = (top - (floor + hem)) / segments
@@ -592,7 +594,15 @@ def long_coat(clip: Clip, hem: float = 0.03, segments: int = 3) -> Clip:
     }.items():
         extra.append((f"coat{key}0", "Hips", (x, top, z), None))
         extra += [(f"coat{key}{i + 1}", f"coat{key}{i}", (0.0, -step, 0.0), None) for i in range(segments)]
-    return with_joints(clip, extra)
+    coated = with_joints(clip, extra)
+    if not sway:
+        return coated
+    cloth = [j for j, name in enumerate(coated.skeleton.names) if name.startswith("coat")]
+    phase = np.arange(coated.frame_count)[:, None] * 0.3 + np.arange(len(cloth))[None, :]
+    swing = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.radians(sway) * np.sin(phase))
+    rotations = coated.rotations.copy()
+    rotations[:, cloth] = quat.multiply(rotations[:, cloth], swing)
+    return replace(coated, rotations=rotations)
 
 
 def _rest_heights(clip: Clip) -> FloatArray:

@@ -55,8 +55,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # used by intermediate versions of it, whose caches must not be read); 17: nameless rigs whose rest
 # pose is an exported frame (armature-only FBX, Blender USD) find their legs, the moving ones first;
 # 18: the same where every joint moves, both legs of a pair moving, and a stated range's note on the
-# held keys it keeps (17 was used by intermediate versions).
-MEASUREMENT_REVISION = 18
+# held keys it keeps (17 was used by intermediate versions); 19: a posed frame's legs outrank a
+# moving coat's chains (feet before none, both looks ranked together).
+MEASUREMENT_REVISION = 19
 
 
 def cache_key(
