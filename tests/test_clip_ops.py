@@ -401,3 +401,24 @@ def test_stick_figure_render_of_blended_and_mirrored_clips(tmp_path: Path) -> No
     pixels = render_stick_figures([slow, fast, blended, mirrored], tmp_path / "clip_ops_stick_figures.png")
     panels = np.split(pixels, 4, axis=1)
     assert all((p < 0.9).any() for p in panels)  # every panel has a figure in it
+
+
+def test_a_blend_led_by_its_second_clip_of_the_same_length() -> None:
+    """The main clip was looked up by value among the cycles (arrays): a blend whose second clip
+    weighs more, both of one length, stopped the build (exit 3)."""
+    from blendspace_pipeline.motion.procedural import generate_planted
+
+    back = generate_planted(GaitSpec("back", speed=1.1, direction=180.0, duration=2.0, stride_length=1.1))
+    forward = generate_planted(GaitSpec("fwd", speed=1.4, duration=2.0))
+    assert back.frame_count == forward.frame_count
+    blended = blend_clips([back, forward], [0.3, 0.7], name="m", settings=RigSettings())
+    assert blended.frame_count > 2
+
+
+def test_a_blend_is_sampled_at_its_finest_source_rate() -> None:
+    """A still idle read at 24 fps (two keys tell no rate) first among 30 fps takes set the blend's
+    rate, and the baked clip ran at 24 fps."""
+    idle = generate(GaitSpec("idle", duration=2.0, fps=24.0))
+    walk = generate(GaitSpec("walk", speed=0.8, duration=2.0, stride_length=0.9, fps=30.0))
+    blended = blend_clips([idle, walk], [0.5, 0.5], name="m", settings=RigSettings())
+    assert blended.fps == 30.0

@@ -12,6 +12,7 @@ a Z-up turn was measured Y-up, in metres.
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -150,8 +151,13 @@ def test_takes_stated_as_they_read_merge_with_takes_left_to_detection(tmp_path: 
     doc = _build(
         _project(tmp_path, other_convention=False, turns=split, top="{}", turns_say="{up: y, units: m}")
     )
-    assert "merged_turn_mid_a_turn_mid_b" in _samples(doc)
+    samples = _samples(doc)
+    assert "merged_turn_mid_a_turn_mid_b" in samples
     assert not [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]  # type: ignore[attr-defined]
+    # Measured as it was made (up axis and unit as its sources read), not detected again: a merge
+    # made Y up had been read -Y up from a blended body, and its file could not be written (exit 3).
+    detected = [n for n in samples["merged_turn_mid_a_turn_mid_b"]["clip"]["notes"] if "detected" in n]  # type: ignore[index]
+    assert not detected and any("detected" in n for n in samples["walk_fwd"]["clip"]["notes"]), detected  # type: ignore[index]
 
 
 @pytest.mark.parametrize("where", ["entry", "top"])
@@ -178,3 +184,7 @@ def test_a_dropped_rest_frame_is_dropped_once(tmp_path: Path, where: str) -> Non
     source, mirror = samples["turn_in_place_left"]["clip"], samples["turn_in_place_right"]["clip"]
     assert mirror["frames"] == source["frames"] and mirror["duration"] == source["duration"]
     assert not [n for n in mirror["notes"] if "rest/T-pose" in n], mirror["notes"]
+    # Fed back as a source (the build's BVH, with its provenance), it keeps every frame too.
+    shutil.copy(tmp_path / "out" / "clips" / "turn_in_place_right.bvh", tmp_path / "clips")
+    again = _samples(_build(manifest))["turn_in_place_right"]
+    assert not again["generated"] and again["clip"]["frames"] == mirror["frames"]

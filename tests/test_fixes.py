@@ -356,3 +356,28 @@ def test_an_axis_clip_that_plants_no_foot_is_not_baked(tmp_path: Path) -> None:
     rejected = [d["message"] for d in doc["diagnostics"] if d["rule"] == "fix-rejected"]  # type: ignore[attr-defined]
     assert any("never plants a foot where idle and run_fwd do" in m for m in rejected), rejected
     assert _crossing_edges(doc)
+
+
+def test_a_straightened_bvh_with_root_motion_on_a_root_joint_is_written(tmp_path: Path) -> None:
+    """The sources carry the trajectory on a `Root` joint and their Hips have no position channels:
+    the straightened clip moves the Hips, which the source's layout cannot hold (exit 3). It is
+    written in its own layout, and reads back as made."""
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    specs = (*DRAFT, GaitSpec("walk_fwd", speed=1.4, turn_rate=4.0, duration=2.0))
+    for spec in specs:
+        write_bvh_clip(generate(spec, with_root_joint=True), folder / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}]\n" + AXES + "fixes: {straighten: true}\n"
+    )
+    doc = _build(manifest, tmp_path / "out")
+    made = {s["name"]: s for s in doc["samples"] if s["generated"]}  # type: ignore[attr-defined]
+    assert "walk_fwd_straight" in made, sorted(made)
+    written = read_clips(tmp_path / "out" / "clips" / "walk_fwd_straight.bvh")[0]
+    features = measure(written, RigSettings()).features
+    assert features["turn_rate"] == pytest.approx(0.0, abs=0.5)
+    assert features["speed"] == pytest.approx(made["walk_fwd_straight"]["features"]["speed"], abs=0.01)

@@ -21,7 +21,7 @@ from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.readers import read_clips
-from blendspace_pipeline.readers.gltf import _frame_rate, read
+from blendspace_pipeline.readers.gltf import _frame_rate, _key_interval, read
 from blendspace_pipeline.writers.gltf import write_gltf_clip
 
 Y = np.array([0.0, 1.0, 0.0])
@@ -228,6 +228,23 @@ def test_linear_keys_are_interpolated_at_30_fps(tmp_path: Path) -> None:
 )
 def test_the_keys_interval_gives_the_rate_they_were_keyed_at(interval: float, fps: float) -> None:
     assert _frame_rate([interval], []) == fps
+
+
+@pytest.mark.parametrize("decimals", [2, 3, 4])
+@pytest.mark.parametrize("fps", [24.0, 30.0, 60.0, 120.0, 24000 / 1001, 30000 / 1001])
+def test_key_times_written_to_a_few_decimals_read_at_their_rate(fps: float, decimals: int) -> None:
+    """Exporters that round key times: 24 fps at 3 decimals read 23.976 (one rounded step fits it
+    a little better), 60 at 3 decimals 58.8. A regular channel's span over its key count is the
+    step; NTSC rates keyed exactly still read as such."""
+    if 10.0**-decimals > 0.25 / fps:
+        pytest.skip("rounded to more than a quarter of a frame: the keys are no regular step")
+    rounded = np.round(np.arange(2 * round(fps) + 1) / fps, decimals).astype(np.float32).astype(np.float64)
+    exact = (np.arange(2 * round(fps) + 1) / fps).astype(np.float32).astype(np.float64)
+    expected = fps if fps == round(fps) or decimals >= 4 else None
+    for times, want in ((exact, fps), (rounded, expected)):
+        if want is None:
+            continue  # NTSC keys rounded to 2-3 decimals: either rate is within the rounding
+        assert _frame_rate([_key_interval(times)], []) == pytest.approx(want, rel=1e-9), (fps, decimals)
 
 
 def test_step_keys_hold_until_the_next_key(tmp_path: Path) -> None:

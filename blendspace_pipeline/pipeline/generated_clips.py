@@ -95,5 +95,11 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
         from blendspace_pipeline.writers.bvh import write_bvh_clip
 
         written.append(folder / f"{safe_file_stem(clip.name)}.bvh")
-        write_bvh_clip(clip, written[-1], template=template, provenance=record)
+        try:
+            write_bvh_clip(clip, written[-1], template=template, provenance=record)
+        except ValueError:
+            # The source's layout cannot hold the motion (a merge or a straightened clip moves a
+            # joint that has no position channels there, the root motion being on a `Root`):
+            # written in its own layout, position channels where joints move.
+            write_bvh_clip(clip, written[-1], provenance=record)
     return written

@@ -26,6 +26,7 @@ from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_ch
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import adapter_for, read_clips
 from blendspace_pipeline.readers.limits import check_regular
+from blendspace_pipeline.readers.provenance import read_provenance
 from blendspace_pipeline.space.model import MeasuredClip
 
 
@@ -96,6 +97,10 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
     if cached is not None:
         return digest, key, cached
     clips = read_clips(path, project=project)
+    if settings.tpose == "drop" and read_provenance(path) is not None:
+        # A clip an earlier build made starts on motion (its sources' rest frames were cut once):
+        # fed back as a source under `tpose: drop`, it lost a real frame.
+        settings = replace(settings, tpose="keep")
     # A file of several animations may hold a pose among them (Blender's one-key "TPose" action):
     # no motion to measure, and no entry can leave one animation of a file out, so it is left
     # out here and said on the others. Alone in its file it is the clip, and its error stands.

@@ -567,6 +567,17 @@ def _joint_names(document: _Document, nodes: list[int]) -> tuple[str, ...]:
     )
 
 
+def _key_interval(times: FloatArray) -> float:
+    """The time between a channel's keys: for keys on a regular step, their span over their count
+    (key times written to 3 or 4 decimals are each off by up to half the last digit, which no
+    longer tells 24 fps from 23.976, nor 60 from 58.8); else the median step."""
+    steps = np.diff(times)
+    positive = steps[steps > 0]
+    if len(positive) == len(steps) and positive.max() <= 1.5 * positive.min():
+        return float(times[-1] - times[0]) / len(steps)
+    return float(np.median(steps))
+
+
 def _frame_rate(intervals: list[float], notes: list[str]) -> float:
     """The keys' rate snapped to a common rate (15 fps keys sample at 30)."""
     if not intervals:
@@ -638,7 +649,7 @@ def _read_clip(document: _Document, index: int, skin: list[int], name: str) -> C
     keyed = [(channel, *document.keys(channel)) for channel in channels]
     start = min((float(times[0]) for _, times, _, _ in keyed), default=0.0)
     end = max((float(times[-1]) for _, times, _, _ in keyed), default=0.0)
-    intervals = [float(np.median(np.diff(t))) for _, t, _, _ in keyed if len(t) > 1 and np.diff(t).max() > 0]
+    intervals = [_key_interval(t) for _, t, _, _ in keyed if len(t) > 1 and np.diff(t).max() > 0]
     fps = _frame_rate([i for i in intervals if i > 0], notes)
     count = int(np.floor((end - start) * fps + 0.5)) + 1
     if count > _MAX_FRAMES:

@@ -128,7 +128,9 @@ class Timing:
 def align(clips: Sequence[Clip], weights: Sequence[float], fps: float, settings: RigSettings) -> Timing:
     """Put the clips in step: by stride phase when any has a gait, else by normalised time."""
     cycles: list[GaitCycle | None] = [detect_cycle(clip, settings) for clip in clips]
-    walking = [(w, c) for w, c in zip(weights, cycles, strict=True) if c is not None and w > 0.0]
+    walking = [
+        (w, c, i) for i, (w, c) in enumerate(zip(weights, cycles, strict=True)) if c is not None and w > 0.0
+    ]
     duration = float(sum(w * clip.duration for w, clip in zip(weights, clips, strict=True)))
     if not walking:
         frames = max(2, round(duration * fps) + 1)
@@ -141,13 +143,15 @@ def align(clips: Sequence[Clip], weights: Sequence[float], fps: float, settings:
             [False] * len(clips),
             "aligned in normalised time (no gait found)",
         )
-    share = sum(w for w, _ in walking)
-    period = sum(w * c.period for w, c in walking) / share
+    share = sum(w for w, _, _ in walking)
+    period = sum(w * c.period for w, c, _ in walking) / share
     strides = max(1, int(np.floor(duration / period + 0.5)))
     frames = max(2, round(strides * period * fps) + 1)
-    lead = max(walking, key=lambda wc: wc[0])[1]  # the result starts where its main clip starts
+    # The result starts where its main clip starts. By position: cycles hold arrays, and
+    # `list.index` compared two clips' cycles by value (an error when the weights favoured the second).
+    _, lead, lead_index = max(walking, key=lambda entry: entry[0])
     start = float(lead.phase[0])
-    offsets = plant_offsets(clips, cycles, cycles.index(lead), settings)
+    offsets = plant_offsets(clips, cycles, lead_index, settings)
     along = np.linspace(0.0, 1.0, frames)
     mid = (np.arange(frames - 1) + 0.5) / (frames - 1)
     poses, steps, wraps = [], [], []
@@ -231,7 +235,9 @@ def blend_clips(
             f"({', '.join(sorted({m.up_axis.upper() for m in motions}))})"
         )
     weights_list = [float(x) for x in w]
-    fps = clips[0].fps
+    # The finest source rate: a still idle's rate is arbitrary (a glTF's two keys tell none), and
+    # first in the list it made a blend with a 30 fps walk run at 24.
+    fps = max(clip.fps for clip in clips)
     timing = align(sources, weights_list, fps, settings)
 
     rotations, translations, rel_rot, rel_pos, velocities, yaw_rates = [], [], [], [], [], []
