@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_fixes import LEFT_TURNS
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.clip import forward_kinematics
@@ -25,13 +26,7 @@ from blendspace_pipeline.motion.procedural import GaitSpec, generate, generate_p
 from blendspace_pipeline.writers.bvh import write_bvh_clip
 
 SPECS = (
-    GaitSpec("idle", duration=2.0),
-    GaitSpec("walk_fwd", speed=1.4, duration=2.0),
-    GaitSpec("run_fwd", speed=4.0, duration=1.6, stride_length=2.6),
-    GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1, duration=2.0),
-    GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
-    GaitSpec("walk_turn_left", speed=1.4, turn_rate=50.0, duration=2.0),
-    GaitSpec("run_turn_left", speed=4.0, turn_rate=60.0, duration=1.6, stride_length=2.6),
+    *LEFT_TURNS,
     GaitSpec("turn_mid_a", speed=2.5, turn_rate=30.0, duration=1.0, stride_length=2.5),
     GaitSpec("turn_mid_b", speed=2.6, turn_rate=34.0, duration=1.0, stride_length=2.6),
 )

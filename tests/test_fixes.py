@@ -28,6 +28,16 @@ DRAFT = (
     GaitSpec("walk_turn_right", speed=1.4, turn_rate=-50.0, duration=1.5),
     GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
 )
+# The straight gaits and left turns only (walking, running, on the spot): mirrors to make.
+LEFT_TURNS = (
+    GaitSpec("idle", duration=2.0),
+    GaitSpec("walk_fwd", speed=1.4, duration=2.0),
+    GaitSpec("run_fwd", speed=4.0, duration=1.6, stride_length=2.6),
+    GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1, duration=2.0),
+    GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
+    GaitSpec("walk_turn_left", speed=1.4, turn_rate=50.0, duration=2.0),
+    GaitSpec("run_turn_left", speed=4.0, turn_rate=60.0, duration=1.6, stride_length=2.6),
+)
 # With a slow walk on the speed axis: the axis clip at the left/right turns' crossing (1.4 m/s)
 # is a blend of two gaits (slow walk, run). Between the idle and the run it plants no foot.
 WITH_SLOW_WALK = (*DRAFT, GaitSpec("walk_slow", speed=0.5, duration=1.8, stride_length=0.9))
@@ -149,16 +159,7 @@ def test_a_fix_no_better_until_a_later_fix_is_tried_again_so_the_next_build_adds
     mirrored, and does after: each fix was tried once, so the next build, with the
     generated clips fed back, added them. A fix not kept is tried again after a later one is kept,
     and said once."""
-    specs = (
-        GaitSpec("idle", duration=2.0),
-        GaitSpec("walk_fwd", speed=1.4, duration=2.0),
-        GaitSpec("run_fwd", speed=4.0, duration=1.6, stride_length=2.6),
-        GaitSpec("walk_bwd", speed=1.1, direction=180.0, stride_length=1.1, duration=2.0),
-        GaitSpec("turn_in_place_left", turn_rate=90.0, duration=2.0),
-        GaitSpec("walk_turn_left", speed=1.4, turn_rate=50.0, duration=2.0),
-        GaitSpec("run_turn_left", speed=4.0, turn_rate=60.0, duration=1.6, stride_length=2.6),
-    )
-    manifest = _project(tmp_path, specs, "fixes: {mirror: true, axis_clips: true}\n")
+    manifest = _project(tmp_path, LEFT_TURNS, "fixes: {mirror: true, axis_clips: true}\n")
     first = _build(manifest, tmp_path / "a")
     made = {s["name"] for s in first["samples"] if s["generated"]}  # type: ignore[attr-defined]
     assert {"turn_in_place_right", "run_turn_right"} <= made, made  # the second one was the next build's

@@ -17,6 +17,15 @@ from blendspace_pipeline.readers.usd import read
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 FRAMES = 5
+# `walk_clip`'s joints as USD joint paths.
+JOINT_PATHS = (
+    "Hips",
+    "Hips/LeftUpLeg",
+    "Hips/LeftUpLeg/LeftLeg",
+    "Hips/RightUpLeg",
+    "Hips/RightUpLeg/RightLeg",
+    "Hips/Spine",
+)
 
 
 def walk_clip(name: str = "walk") -> Clip:
@@ -210,14 +219,7 @@ def test_two_animations_give_two_clips_named_after_their_prims(tmp_path: Path) -
     original = walk_clip()
     path = tmp_path / "walk.usda"
     write_usd_clip(original, path)
-    joints = [
-        "Hips",
-        "Hips/LeftUpLeg",
-        "Hips/LeftUpLeg/LeftLeg",
-        "Hips/RightUpLeg",
-        "Hips/RightUpLeg/RightLeg",
-        "Hips/Spine",
-    ]
+    joints = list(JOINT_PATHS)
     turned = quat.multiply(quat.from_euler(np.array([0.0, 90.0, 0.0]), "XYZ"), original.rotations)
     _add_animation(path, "turn", joints, turned, original.translations)
     first, second = read(path)
@@ -344,13 +346,7 @@ def test_a_pose_without_keys_beside_a_keyed_take_stays_one_pose(tmp_path: Path) 
     original = walk_clip()
     path = tmp_path / "walk.usda"
     write_usd_clip(original, path)
-    joints = [
-        "Hips",
-        "Hips/LeftUpLeg",
-        "Hips/LeftUpLeg/LeftLeg",
-        "Hips/RightUpLeg",
-        "Hips/RightUpLeg/RightLeg",
-    ]
+    joints = list(JOINT_PATHS[:5])
     stage = Usd.Stage.Open(str(path))
     pose = UsdSkel.Animation.Define(stage, "/walk/TPose")
     pose.CreateJointsAttr(Vt.TokenArray(joints))
