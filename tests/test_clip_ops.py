@@ -415,10 +415,13 @@ def test_a_blend_led_by_its_second_clip_of_the_same_length() -> None:
     assert blended.frame_count > 2
 
 
-def test_a_blend_is_sampled_at_its_finest_source_rate() -> None:
-    """A still idle read at 24 fps (two keys tell no rate) first among 30 fps takes set the blend's
-    rate, and the baked clip ran at 24 fps."""
-    idle = generate(GaitSpec("idle", duration=2.0, fps=24.0))
+@pytest.mark.parametrize("idle_fps", [24.0, 120.0])
+def test_a_blend_runs_at_the_rate_of_its_moving_sources(idle_fps: float) -> None:
+    """A still idle's rate is arbitrary (a glTF's two keys tell none): first in the list it set a
+    blend with a 30 fps walk to 24 fps; the finest rate of all would let it set 120."""
+    from blendspace_pipeline.motion.hostile import still_pose
+
     walk = generate(GaitSpec("walk", speed=0.8, duration=2.0, stride_length=0.9, fps=30.0))
+    idle = still_pose(generate(GaitSpec("idle", duration=2.0, fps=idle_fps)), round(2 * idle_fps))
     blended = blend_clips([idle, walk], [0.5, 0.5], name="m", settings=RigSettings())
     assert blended.fps == 30.0

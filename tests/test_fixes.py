@@ -163,8 +163,14 @@ def test_a_fix_no_better_until_a_later_fix_is_tried_again_so_the_next_build_adds
     first = _build(manifest, tmp_path / "a")
     made = {s["name"] for s in first["samples"] if s["generated"]}  # type: ignore[attr-defined]
     assert {"turn_in_place_right", "run_turn_right"} <= made, made  # the second one was the next build's
-    verdicts = [d["message"] for d in first["diagnostics"] if d["rule"].startswith("fix-")]  # type: ignore[attr-defined]
-    assert len(verdicts) == len(set(verdicts)), verdicts
+    verdicts = [
+        (d["rule"], tuple(d["clips"]), tuple(d["position"]) if d["position"] else None)
+        for d in first["diagnostics"]  # type: ignore[attr-defined]
+        if d["rule"] in ("fix-rejected", "fix-skipped")
+    ]
+    assert len(verdicts) == len({(clips, position) for _, clips, position in verdicts}), verdicts
+    # Rejected at first, kept after the turn in place: no verdict stays on it.
+    assert ("fix-rejected", ("run_turn_left",), None) not in verdicts, verdicts
     shutil.copytree(tmp_path / "a" / "clips", tmp_path / "clips", dirs_exist_ok=True)
     again = _build(manifest, tmp_path / "b")
     assert not [s for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]
@@ -382,3 +388,21 @@ def test_a_straightened_bvh_with_root_motion_on_a_root_joint_is_written(tmp_path
     features = measure(written, RigSettings()).features
     assert features["turn_rate"] == pytest.approx(0.0, abs=0.5)
     assert features["speed"] == pytest.approx(made["walk_fwd_straight"]["features"]["speed"], abs=0.01)
+
+
+def test_findings_left_when_the_fix_attempts_run_out_say_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The loop stops at `MAX_ATTEMPTS`: the findings no fix was tried on said nothing (and the
+    next build, with the clips made fed back, made more)."""
+    from blendspace_pipeline.pipeline import fix_loop
+
+    monkeypatch.setattr(fix_loop, "MAX_ATTEMPTS", 1)
+    doc = _build(_project(tmp_path, LEFT_TURNS, "fixes: {mirror: true}\n"), tmp_path / "out")
+    made = [s["name"] for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    untried = [
+        d
+        for d in doc["diagnostics"]  # type: ignore[attr-defined]
+        if d["rule"] == "fix-skipped" and "not tried: the build tries at most 1 fixes" in d["message"]
+    ]
+    assert len(made) <= 1 and untried, (made, [d["message"] for d in doc["diagnostics"]])  # type: ignore[attr-defined]

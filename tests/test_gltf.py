@@ -218,25 +218,25 @@ def test_linear_keys_are_interpolated_at_30_fps(tmp_path: Path) -> None:
         (1 / 120, 120.0),
         (float(np.float32(1 / 24)), 24.0),
         (0.5, 24.0),  # keys every 12 frames at 24 fps or every 15 at 30: the first common rate
-        (249 / 30, 30.0),  # a still pose keyed on Blender's first and last scene frames, at 30 fps
+        (0.125, 24.0),  # every 3 frames at 24 fps
+        (0.1001, 30000 / 1001),  # every 3 frames at 29.97 fps
+        # Keys further apart than half a second are poses: a still keyed on Blender's first and
+        # last scene frames (249 frames at 30, 25 or 29.97 fps: read at 24, 24 and 120 before).
+        (249 / 30, 30.0),
         (float(np.float32(249 / 30)), 30.0),
-        (249 / 24, 24.0),
-        (249 / 25, 25.0),  # the closest fit, not the first: 24 fits 9.96 s within a tenth of a frame too
-        (249 * 1.001 / 30, 30000 / 1001),  # a 29.97 fps scene's still (read at 120 before)
-        (7.9873, 30.0),  # on no common rate's frames (0.24 of a frame off at best): never coarser than 30 fps
+        (249 / 25, 30.0),
+        (249 * 1.001 / 30, 30.0),
+        (7.77, 30.0),
     ],
 )
 def test_the_keys_interval_gives_the_rate_they_were_keyed_at(interval: float, fps: float) -> None:
     assert _frame_rate([interval], []) == fps
 
 
-# Rates and decimals where rounding moves a key by less than a quarter of a frame (further, the
-# keys are no regular step: 60 fps at 2 decimals alternates 0.01 and 0.02 s).
+# Key times written to 3 or 4 decimals (at 2, steps differ by 10 ms: 24 fps alternates 0.04 and
+# 0.05 s, no regular step to read).
 ROUNDED = [
-    (fps, decimals)
-    for fps in (24.0, 30.0, 60.0, 120.0, 24000 / 1001, 30000 / 1001)
-    for decimals in (2, 3, 4)
-    if 10.0**-decimals <= 0.25 / fps
+    (fps, decimals) for fps in (24.0, 30.0, 60.0, 120.0, 24000 / 1001, 30000 / 1001) for decimals in (3, 4)
 ]
 
 
@@ -252,6 +252,13 @@ def test_key_times_written_to_a_few_decimals_read_at_their_rate(fps: float, deci
         if want is None:
             continue  # NTSC keys rounded to 2-3 decimals: either rate is within the rounding
         assert _frame_rate([_key_interval(times)], []) == pytest.approx(want, rel=1e-9), (fps, decimals)
+
+
+def test_hand_keys_on_uneven_frames_are_no_regular_step() -> None:
+    """Keys on frames 0, 2, 4, 7, 9, 11 at 24 fps: their span over their count (an average step
+    of 2.2 frames) read them at 120 fps; the median step reads 24."""
+    times = np.array([0, 2, 4, 7, 9, 11], dtype=np.float64) / 24.0
+    assert _frame_rate([_key_interval(times)], []) == 24.0
 
 
 def test_step_keys_hold_until_the_next_key(tmp_path: Path) -> None:

@@ -38,7 +38,7 @@ from blendspace_pipeline.motion.clip_ops.blend import measured_part
 from blendspace_pipeline.motion.detect import RigSettings
 from blendspace_pipeline.motion.measure import Measurement, measure, part_options, trim
 from blendspace_pipeline.pipeline.analysis import finish_analysis
-from blendspace_pipeline.pipeline.measure_stage import clip_settings, entry_settings
+from blendspace_pipeline.pipeline.measure_stage import as_made, clip_settings, entry_settings
 from blendspace_pipeline.pipeline.placeholders import converge_placeholders
 from blendspace_pipeline.readers import read_clips
 from blendspace_pipeline.readers.provenance import Provenance, read_provenance
@@ -89,7 +89,8 @@ def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]
     # fix was kept after it (the mirror of a walking turn, no better before the turn in place
     # was mirrored, is better after; the next build, with that mirror fed back as a source, made
     # it, and a build was not idempotent).
-    tried: dict[tuple[object, ...], int] = {}  # fix -> how many fixes were kept when it was tried
+    # Fixes never tried go first; a retry spends the same budget (`MAX_ATTEMPTS`).
+    tried: dict[tuple[object, ...], int] = {}  # fix -> how many fixes had been kept after trying it
     kept_fixes = attempts = 0
     for _ in range(MAX_ROUNDS):
         progress = False
@@ -97,19 +98,21 @@ def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]
             if not fixer.enabled(kind):
                 continue
             while attempts < MAX_ATTEMPTS:
-                diagnostic = next(
-                    (d for d in fixer.todo(space, kind) if tried.get(_attempt_key(kind, d), -1) < kept_fixes),
-                    None,
+                todo = fixer.todo(space, kind)
+                diagnostic = next((d for d in todo if _attempt_key(kind, d) not in tried), None) or next(
+                    (d for d in todo if tried[_attempt_key(kind, d)] < kept_fixes), None
                 )
                 if diagnostic is None:
                     break
-                tried[_attempt_key(kind, diagnostic)] = kept_fixes
                 attempts += 1
                 space, kept = fixer.attempt(space, kind, diagnostic)
                 kept_fixes += kept
+                tried[_attempt_key(kind, diagnostic)] = kept_fixes
                 progress |= kept
         if not progress:
             break
+    if attempts >= MAX_ATTEMPTS:
+        fixer.out_of_attempts(space, set(tried))
     converge_placeholders(space, jobs=jobs)
     # What was said of a fix whose finding a later fix cured is no longer so.
     present = {_about(d) for d in space.diagnostics}
@@ -250,10 +253,24 @@ class _Fixer:
         candidate = self.rebuild(space)
         why_not = self._worse(space, candidate)
         if why_not is None:
+            self.state.verdicts.pop(_about(diagnostic), None)  # an earlier try's verdict no longer holds
             return candidate, True
         self.state.generated, self.state.removed = generated, removed
         self._reject(diagnostic, kind, why_not)
         return space, False
+
+    def out_of_attempts(self, space: BlendSpace, tried: set[tuple[object, ...]]) -> None:
+        """A `fix-skipped` on each finding a fix was not tried on: the build stopped at
+        `MAX_ATTEMPTS` (the next build, with the clips made fed back, may make more)."""
+        for kind in ORDER:
+            if self.enabled(kind):
+                for diagnostic in self.todo(space, kind):
+                    if _attempt_key(kind, diagnostic) not in tried:
+                        self._skip(
+                            diagnostic,
+                            f"not tried: the build tries at most {MAX_ATTEMPTS} fixes",
+                            hint="build again with the clips made so far among the sources, or author them",
+                        )
 
     def _worse(self, before: BlendSpace, after: BlendSpace) -> str | None:
         """Why ``after`` is not better than ``before`` (see `score`), or None when it is."""
@@ -294,14 +311,13 @@ class _Fixer:
         engine plays that blend there too, but a baked clip must be one to use. None otherwise."""
         for name, generated in sorted(self.state.generated.items()):
             measured = generated.measured
-            if name not in present or measured is None or _plants(measured.measurement):
+            if name not in present or measured is None or _plants(measured.measurement) is not False:
                 continue
             sources = [self._measurement(n) for n in generated.sources]
             if all(m is not None and _plants(m) for m in sources):
-                return (
-                    f"{name}, the clip it makes, never plants a foot where {' and '.join(generated.sources)} "
-                    "do (they share no gait: author a clip there)"
-                )
+                why = " (they share no gait: author a clip there)" if len(sources) > 1 else ""
+                verb = "does" if len(sources) == 1 else "do"
+                return f"{name}, the clip it makes, never plants a foot where {' and '.join(generated.sources)} {verb}{why}"
         return None
 
     def _measurement(self, name: str) -> Measurement | None:
@@ -314,7 +330,7 @@ class _Fixer:
         data = diagnostic.fix_data or {}
         source = str(data["source"])
         name = self._unique(mirrored_name(source))
-        settings = self._settings(source)
+        settings = self._read_as(source)
         clip = mirror_clip(self._clip(source), settings=settings, name=name, pairs=self._pairs(source))
         return self._add(clip, "missing-opposite", (source,), f"mirror of {source}", (1.0,), settings)
 
@@ -399,7 +415,7 @@ class _Fixer:
             self.state.removed[source] = f"misalignment: {earlier[0]} already is its straight version"
             return True
         name = self._unique(_safe(f"{source}_straight"))
-        settings = self._settings(source)
+        settings = self._read_as(source)
         clip = straighten_clip(self._clip(source), settings=settings, name=name)
         self.state.removed[source] = f"misalignment: replaced by {name}"
         return self._add(clip, "misalignment", (source,), "turn removed", (1.0,), settings)
@@ -416,7 +432,10 @@ class _Fixer:
             animation = str(measured.extra.get("animation", name))
             clips = read_clips(measured.source, project=self.original.manifest.directory)
             clip = next((c for c in clips if c.name == animation), clips[0])
-            read_as = clip_settings(self.model.skeleton, measured.entry)  # its own `tpose:` too
+            # Its own `tpose:` too, but for a clip an earlier build made (fed back as a source).
+            read_as = as_made(
+                clip_settings(self.model.skeleton, measured.entry), self.provenance(name) is not None
+            )
             self.clips[name] = measured_part(
                 trim(clip, measured.time_range), read_as, **part_options(measured.entry.range)
             )
@@ -646,11 +665,10 @@ class _Refused(Exception):
     """A fix that must not be made (it would lose a key clip): becomes a fix-rejected finding."""
 
 
-def _plants(measurement: Measurement) -> bool:
-    """Whether a clip plants a foot at all (a rig without feet found: no contacts, counted as
-    planting, nothing to say)."""
+def _plants(measurement: Measurement) -> bool | None:
+    """Whether a clip plants a foot at all; None where no feet were found (nothing to say)."""
     contacts = measurement.contacts
-    return contacts is None or any(spans for spans in contacts.values())
+    return None if contacts is None else any(spans for spans in contacts.values())
 
 
 def _made_from(entry: ClipEntry) -> SkeletonSettings:

@@ -5,7 +5,8 @@ not say theirs), so it opens at the right size in any USD tool. The GLB (metres,
 animation named after the clip) is what Godot imports natively, Unreal through Interchange and
 Unity through glTFast. When every source of the set is BVH, the clip is also written as BVH with
 the source's own hierarchy header and channel layout, so it drops into the same pipeline as the
-clips it came from. The manifest's ``output.clip_formats`` narrows the list. Every file carries
+clips it came from (in its own layout where that one cannot hold its motion: a joint that moves
+with no position channels there). The manifest's ``output.clip_formats`` narrows the list. Every file carries
 the clip's provenance (`readers.provenance`): how the next build knows it for a generated clip.
 """
 
@@ -92,12 +93,12 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
         write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     template = bvh_template(space, generated) if "bvh" in formats else None
     if template is not None:
-        from blendspace_pipeline.writers.bvh import write_bvh_clip
+        from blendspace_pipeline.writers.bvh import LayoutCannotHold, write_bvh_clip
 
         written.append(folder / f"{safe_file_stem(clip.name)}.bvh")
         try:
             write_bvh_clip(clip, written[-1], template=template, provenance=record)
-        except ValueError:
+        except LayoutCannotHold:
             # The source's layout cannot hold the motion (a merge or a straightened clip moves a
             # joint that has no position channels there, the root motion being on a `Root`):
             # written in its own layout, position channels where joints move.

@@ -69,6 +69,18 @@ def entry_settings(top: SkeletonSettings, entry: ClipEntry) -> SkeletonSettings:
     )
 
 
+MADE_EARLIER_NOTE = (
+    "made by an earlier build (its file says so): `tpose: drop` not applied, its first frame is motion"
+)
+
+
+def as_made(settings: RigSettings, made_earlier: bool) -> RigSettings:
+    """``settings`` for a clip file an earlier build made (``made_earlier``: its provenance says
+    so): it starts on motion, its sources' rest frames cut once, so `tpose: drop` does not apply
+    (fed back as a source, it lost a real frame)."""
+    return replace(settings, tpose="keep") if made_earlier and settings.tpose == "drop" else settings
+
+
 def clip_settings(top: SkeletonSettings, entry: ClipEntry) -> RigSettings:
     """How the clips of ``entry`` are read, measured and remade (fixes, the foot-skate map)."""
     return rig_settings(entry_settings(top, entry))
@@ -97,10 +109,8 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
     if cached is not None:
         return digest, key, cached
     clips = read_clips(path, project=project)
-    if settings.tpose == "drop" and read_provenance(path) is not None:
-        # A clip an earlier build made starts on motion (its sources' rest frames were cut once):
-        # fed back as a source under `tpose: drop`, it lost a real frame.
-        settings = replace(settings, tpose="keep")
+    made = settings.tpose == "drop" and read_provenance(path) is not None
+    settings = as_made(settings, made)
     # A file of several animations may hold a pose among them (Blender's one-key "TPose" action):
     # no motion to measure, and no entry can leave one animation of a file out, so it is left
     # out here and said on the others. Alone in its file it is the clip, and its error stands.
@@ -108,6 +118,8 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
     if len(poses) == len(clips):
         poses = []
     measured = [(clip.name, measure(clip, settings, time_range)) for clip in clips if clip.name not in poses]
+    for _name, measurement in measured if made else []:
+        measurement.notes.append(MADE_EARLIER_NOTE)
     for _name, measurement in measured:
         measurement.notes += [
             f"animation {pose!r} of this file is a single frame (a pose): left out" for pose in poses

@@ -55,6 +55,11 @@ _CHANNEL_WIDTHS = {"translation": 3, "rotation": 4, "scale": 3}
 # Key rates snap to these when the keys are one of them (or a whole fraction of one).
 _COMMON_RATES = (24.0, 25.0, 30.0, 48.0, 50.0, 60.0, 100.0, 120.0, 24000 / 1001, 30000 / 1001, 60000 / 1001)
 _MIN_RATE = 24.0
+_ROUNDING = 2e-3  # seconds two steps of one rate may differ by when key times are written to 3 decimals
+# Keys further apart than this are poses, not a sampled rate (a still's two keys 8.3 s apart fit
+# some common rate within a tenth of a frame by chance): sampled at `_POSE_RATE`.
+_POSE_INTERVAL = 0.5
+_POSE_RATE = 30.0
 _MAX_RATE = 240.0
 _MAX_FRAMES = 1_000_000
 _KEY_TOLERANCE = 1e-5  # seconds; float32 times are off by ~1e-7 s per second
@@ -573,7 +578,9 @@ def _key_interval(times: FloatArray) -> float:
     longer tells 24 fps from 23.976, nor 60 from 58.8); else the median step."""
     steps = np.diff(times)
     positive = steps[steps > 0]
-    if len(positive) == len(steps) and positive.max() <= 1.5 * positive.min():
+    # Regular: every step the same but for rounding to 3 decimals (hand keys on frames 0, 2, 4, 7
+    # are no regular step: their span over their count read 24 fps keys at 120).
+    if len(positive) == len(steps) and positive.max() - positive.min() <= _ROUNDING:
         return float(times[-1] - times[0]) / len(steps)
     return float(np.median(steps))
 
@@ -584,11 +591,15 @@ def _frame_rate(intervals: list[float], notes: list[str]) -> float:
         return 30.0
     interval = min(intervals)
     rate = 1.0 / interval
+    if interval > _POSE_INTERVAL:
+        notes.append(
+            f"keys every {interval:.4g} s at least (poses, no frame rate): sampled at {_POSE_RATE:g} fps"
+        )
+        return _POSE_RATE
 
     def frames_off(common: float) -> float | None:
         """How far the interval is from a whole number of ``common``'s frames, when within 1 %
-        of it and a tenth of a frame at most (keys far apart, a still pose's two 249 frames
-        apart, fitted every rate within 1 %), else None."""
+        of it and a tenth of a frame at most, else None."""
         multiple = common / rate
         whole = round(multiple)
         off = abs(multiple - whole)

@@ -30,6 +30,11 @@ _ROTATION_ONLY = ("Zrotation", "Xrotation", "Yrotation")
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
 
+class LayoutCannotHold(ValueError):
+    """The template's channels cannot hold the clip's motion: a joint moves that has no position
+    channels there (written in the clip's own layout, it can be)."""
+
+
 def write_bvh_clip(
     clip: Clip, path: Path, *, template: Path | None = None, provenance: Provenance | None = None
 ) -> None:
@@ -105,7 +110,7 @@ def _fit_offsets(clip: Clip, header: BvhHeader, verbatim: str | None) -> str:
             continue  # position channels replace the OFFSET: the template's stays
         track = clip.translations[:, index]
         if _moves(track):
-            raise ValueError(
+            raise LayoutCannotHold(
                 f"joint {joint.name!r} of clip {clip.name!r} moves but has no position channels in BVH"
             )
         wanted = track[0]

@@ -35,6 +35,7 @@ from blendspace_pipeline.motion.detect import (
     resolve_root,
     resolve_units,
     resolve_up,
+    still_joints,
 )
 from blendspace_pipeline.motion.ik import solve_leg
 from blendspace_pipeline.motion.quaternions import FloatArray
@@ -235,9 +236,11 @@ def blend_clips(
             f"({', '.join(sorted({m.up_axis.upper() for m in motions}))})"
         )
     weights_list = [float(x) for x in w]
-    # The finest source rate: a still idle's rate is arbitrary (a glTF's two keys tell none), and
-    # first in the list it made a blend with a 30 fps walk run at 24.
-    fps = max(clip.fps for clip in clips)
+    # The finest rate of the sources that move and weigh: a still idle's rate is arbitrary (a
+    # glTF's two keys tell none), and first in the list it made a blend with a 30 fps walk run at 24.
+    weighed = [clip for clip, weight in zip(sources, weights_list, strict=True) if weight > 0.0]
+    moving = [clip for clip in weighed if len(still_joints(clip)) < clip.skeleton.joint_count]
+    fps = max(clip.fps for clip in moving or weighed)
     timing = align(sources, weights_list, fps, settings)
 
     rotations, translations, rel_rot, rel_pos, velocities, yaw_rates = [], [], [], [], [], []
