@@ -57,8 +57,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # 18: the same where every joint moves, both legs of a pair moving, and a stated range's note on the
 # held keys it keeps (17 was used by intermediate versions); 19: a posed frame's legs outrank a
 # moving coat's chains (feet before none, both looks ranked together); 20: glTF key times rounded
-# to a few decimals read at their rate, a clip an earlier build made is read `tpose: keep`.
-MEASUREMENT_REVISION = 20
+# to a few decimals read at their rate, a clip an earlier build made is read `tpose: keep`; 21: the
+# same as finished (glTF keys half a second apart are poses; 20 was used by intermediate versions).
+MEASUREMENT_REVISION = 21
 
 
 def cache_key(
