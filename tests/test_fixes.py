@@ -406,3 +406,40 @@ def test_findings_left_when_the_fix_attempts_run_out_say_so(
         if d["rule"] == "fix-skipped" and "not tried: the build tries at most 1 fixes" in d["message"]
     ]
     assert len(made) <= 1 and untried, (made, [d["message"] for d in doc["diagnostics"]])  # type: ignore[attr-defined]
+
+
+def test_a_corner_the_mirrors_move_inside_stays_a_key_clip_in_the_next_build(tmp_path: Path) -> None:
+    """walk_c is a corner of the authored set, so the merge with walk_b is refused. The mirrors the
+    build adds widen the hull; fed back as sources, they made walk_c an inner clip, and the next
+    build merged it away. Key clips are of the authored set: the clips an earlier build made are
+    left out of its hull."""
+    from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+    specs = (
+        GaitSpec("idle", duration=2.0),
+        GaitSpec("walk", speed=1.4, duration=2.0),
+        GaitSpec("walk_b", speed=1.45, turn_rate=31.0, duration=2.0),
+        GaitSpec("walk_c", speed=1.40, turn_rate=29.0, duration=2.0),
+        GaitSpec("run", speed=4.0, duration=1.6, stride_length=2.6),
+        GaitSpec("run_l", speed=4.0, turn_rate=60.0, duration=1.6, stride_length=2.6),
+        GaitSpec("strafe", speed=1.2, turn_rate=-60.0, duration=2.0),
+    )
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    for spec in specs:
+        write_bvh_clip(generate(spec), folder / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}]\n"
+        "axes:\n  x: {feature: turn_rate, min: -90, max: 90, divisions: 36}\n"
+        "  y: {feature: speed, min: 0, max: 5, divisions: 50}\n"
+        "fixes: {mirror: true, axis_clips: true, too_close: merge}\n"
+    )
+    first = _build(manifest, tmp_path / "a")
+    made = [s["name"] for s in first["samples"] if s["generated"]]  # type: ignore[attr-defined]
+    assert made and "merged_walk_b_walk_c" not in made, made
+    for name in made:
+        shutil.copy(tmp_path / "a" / "clips" / f"{name}.bvh", folder)
+    again = _build(manifest, tmp_path / "b")
+    assert not [s["name"] for s in again["samples"] if s["generated"]]  # type: ignore[attr-defined]

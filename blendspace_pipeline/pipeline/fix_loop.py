@@ -23,7 +23,7 @@ triggers no fix.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
@@ -146,13 +146,17 @@ def score(space: BlendSpace) -> Score:
     return errors, warnings, -round(hull_coverage(points), 6)
 
 
-def key_clips(space: BlendSpace) -> dict[str, str]:
+def key_clips(space: BlendSpace, made_earlier: Callable[[str], bool] = lambda _name: False) -> dict[str, str]:
     """Authored clips no fix may lose, with why: on a main axis, or a corner of the hull.
 
     "On a main axis" means the clip's measured (unsnapped) position lies within
     `thresholds.crossing_axis` (normalised units; the paper's τχ = 5) of the line speed = 0 or
     turning = 0: the band crossing-axis already treats as on the axis. A hull corner is a vertex
-    of the convex hull of all samples (placed positions): dropping it shrinks the coverage.
+    of the convex hull of the authored samples (placed positions): dropping it shrinks the
+    coverage. ``made_earlier(name)``: whether an earlier build made the sample (fed back as a
+    source): such samples are neither keys nor part of that hull (the mirrors a build added had
+    moved the hull, a corner stopped being one, and the next build merged it away). Asked only of
+    the hull's corners and the clips on an axis: it reads the clip's file.
     """
     tau = space.manifest.model.thresholds.crossing_axis
     lines = []
@@ -160,18 +164,30 @@ def key_clips(space: BlendSpace) -> dict[str, str]:
         if axis.minimum <= 0.0 <= axis.maximum:
             lines.append((index, (0.0 - axis.minimum) / (axis.maximum - axis.minimum) * 100.0))
     found: dict[str, str] = {}
-    normalised = space.normalised_positions()
-    corners = set(convex_hull([(float(x), float(y)) for x, y in normalised]))
-    for sample, placed in zip(space.samples, normalised, strict=True):
-        if sample.generated or sample.clip.extra.get("generated"):
+    points = [(float(x), float(y)) for x, y in space.normalised_positions()]
+    authored = [not (s.generated or s.clip.extra.get("generated")) for s in space.samples]
+    while True:  # the hull of the authored samples, without those an earlier build made
+        corners = set(convex_hull([p for p, mine in zip(points, authored, strict=True) if mine]))
+        made = [
+            i
+            for i, p in enumerate(points)
+            if authored[i] and p in corners and made_earlier(space.samples[i].name)
+        ]
+        if not made:
+            break
+        for i in made:
+            authored[i] = False
+    for sample, placed, mine in zip(space.samples, points, authored, strict=True):
+        if not mine:
             continue
         measured = _normalise(space, sample.measured)
         for index, line in lines:
             if abs(measured[index] - line) <= tau:
-                found[sample.name] = f"on the {space.axes[index].feature} = 0 axis"
+                if not made_earlier(sample.name):
+                    found[sample.name] = f"on the {space.axes[index].feature} = 0 axis"
                 break
         else:
-            if (float(placed[0]), float(placed[1])) in corners:
+            if placed in corners:
                 found[sample.name] = "a corner of the covered area"
     return found
 
@@ -209,7 +225,7 @@ class _Fixer:
         self._provenance: dict[str, Provenance | None] = {}
         # Key clips of the authored set: a clip of an earlier build (it says so in its file) is
         # not authored, and may go when the fix that made it is made again.
-        self.keys = {n: why for n, why in key_clips(space).items() if self.provenance(n) is None}
+        self.keys = key_clips(space, lambda name: self.provenance(name) is not None)
 
     # -- which fixes are on ---------------------------------------------------------------------
     def enabled(self, kind: str) -> bool:
