@@ -478,7 +478,9 @@ class _Fixer:
         found = self._measurement(name)
         if found is None:
             return settings
-        return replace(settings, up=found.up_axis, units=float(found.meters_per_unit))
+        # Only an up axis a manifest can state (a take read X or -Y up stays as its entry says).
+        up = found.up_axis if found.up_axis in ("y", "z") else settings.up
+        return replace(settings, up=up, units=float(found.meters_per_unit))
 
     def _shared_settings(self, names: Sequence[str]) -> RigSettings:
         """One way to read samples ``names``, blended into one clip: each key as the samples that
