@@ -15,7 +15,7 @@ import pytest
 from blendspace_pipeline.rules.crossing_axis import CrossingAxis
 from blendspace_pipeline.rules.uncovered_area import UncoveredArea
 from conftest import shared_data
-from test_fixes import DRAFT, _project
+from test_fixes import DRAFT, _bvh_project, _project
 
 from blendspace_pipeline.cli import main
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
@@ -223,16 +223,13 @@ def test_provenance_round_trips_in_every_format(tmp_path: Path, suffix: str) -> 
 
 
 def test_generated_clips_carry_provenance_and_the_report_shows_refusals(tmp_path: Path) -> None:
-    specs = (*DRAFT, *WALKS)
-    folder = tmp_path / "proj"
-    folder.mkdir()
-    for spec in specs:
-        write_bvh_clip(generate(spec), folder / f"{spec.name}.bvh")
-    manifest = folder / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: loco\nskeleton: {units: m}\nclips:\n  - path: '*.bvh'\n"
+    folder = tmp_path / "proj" / "clips"
+    manifest = _bvh_project(
+        folder,
+        (*DRAFT, *WALKS),
+        "schema_version: 1\nname: loco\nskeleton: {units: m}\nclips:\n  - path: 'clips/*.bvh'\n"
         "axes:\n  x: {feature: turn_rate, min: -180, max: 180, divisions: 100}\n"
-        "  y: {feature: speed, min: -3, max: 6, divisions: 90}\nfixes: {too_close: merge}\n"
+        "  y: {feature: speed, min: -3, max: 6, divisions: 90}\nfixes: {too_close: merge}\n",
     )
     out = tmp_path / "out"
     doc = _run(manifest, out, "--format", "json")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate
 from blendspace_pipeline.pipeline.fix_loop import mirrored_name
 from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.writers.bvh import write_bvh_clip
 from blendspace_pipeline.writers.usd_clip import write_usd_clip
 
 # A first-draft set: left turns only, so mirroring and axis clips have work to do.
@@ -56,6 +58,17 @@ def _project(tmp_path: Path, specs: tuple[GaitSpec, ...] = DRAFT, extra: str = "
         "    ignore: [{rule: in-place-clip, reason: idle}]\n" + AXES + extra
     )
     return manifest
+
+
+def _bvh_project(folder: Path, specs: Sequence[GaitSpec], manifest: str, **options: bool) -> Path:
+    """``specs`` generated (with ``options``) as BVH files in ``folder``, and the manifest text
+    ``manifest`` beside the folder; returns the manifest's path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for spec in specs:
+        write_bvh_clip(generate(spec, **options), folder / f"{spec.name}.bvh")  # type: ignore[arg-type]
+    path = folder.parent / "manifest.yaml"
+    path.write_text(manifest)
+    return path
 
 
 def _build(manifest: Path, out: Path, *args: str) -> dict[str, object]:
@@ -247,15 +260,12 @@ def test_generated_clip_plays_the_same_motion_in_usd(tmp_path: Path) -> None:
 
 def test_bvh_sources_get_bvh_generated_clips_with_the_same_motion(tmp_path: Path) -> None:
     from blendspace_pipeline.motion.clip import forward_kinematics
-    from blendspace_pipeline.writers.bvh import write_bvh_clip
 
     folder = tmp_path / "clips"
-    folder.mkdir()
-    for spec in DRAFT:
-        write_bvh_clip(generate(spec), folder / f"{spec.name}.bvh")
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: loco\nskeleton: {units: m}\nclips:\n  - path: clips/*.bvh\n" + AXES
+    manifest = _bvh_project(
+        folder,
+        DRAFT,
+        "schema_version: 1\nname: loco\nskeleton: {units: m}\nclips:\n  - path: clips/*.bvh\n" + AXES,
     )
     doc = _build(manifest, tmp_path / "out")
     made = [s["name"] for s in doc["samples"] if s["generated"]]  # type: ignore[attr-defined]
@@ -369,17 +379,13 @@ def test_a_straightened_bvh_with_root_motion_on_a_root_joint_is_written(tmp_path
     """The sources carry the trajectory on a `Root` joint and their Hips have no position channels:
     the straightened clip moves the Hips, which the source's layout cannot hold (exit 3). It is
     written in its own layout, and reads back as made."""
-    from blendspace_pipeline.writers.bvh import write_bvh_clip
-
-    folder = tmp_path / "clips"
-    folder.mkdir()
     specs = (*DRAFT, GaitSpec("walk_fwd", speed=1.4, turn_rate=4.0, duration=2.0))
-    for spec in specs:
-        write_bvh_clip(generate(spec, with_root_joint=True), folder / f"{spec.name}.bvh")
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text(
+    manifest = _bvh_project(
+        tmp_path / "clips",
+        specs,
         "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\n"
-        "    ignore: [{rule: in-place-clip, reason: idle}]\n" + AXES + "fixes: {straighten: true}\n"
+        "    ignore: [{rule: in-place-clip, reason: idle}]\n" + AXES + "fixes: {straighten: true}\n",
+        with_root_joint=True,
     )
     doc = _build(manifest, tmp_path / "out")
     made = {s["name"]: s for s in doc["samples"] if s["generated"]}  # type: ignore[attr-defined]
@@ -413,8 +419,6 @@ def test_a_corner_the_mirrors_move_inside_stays_a_key_clip_in_the_next_build(tmp
     build adds widen the hull; fed back as sources, they made walk_c an inner clip, and the next
     build merged it away. Key clips are of the authored set: the clips an earlier build made are
     left out of its hull."""
-    from blendspace_pipeline.writers.bvh import write_bvh_clip
-
     specs = (
         GaitSpec("idle", duration=2.0),
         GaitSpec("walk", speed=1.4, duration=2.0),
@@ -425,16 +429,14 @@ def test_a_corner_the_mirrors_move_inside_stays_a_key_clip_in_the_next_build(tmp
         GaitSpec("strafe", speed=1.2, turn_rate=-60.0, duration=2.0),
     )
     folder = tmp_path / "clips"
-    folder.mkdir()
-    for spec in specs:
-        write_bvh_clip(generate(spec), folder / f"{spec.name}.bvh")
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text(
+    manifest = _bvh_project(
+        folder,
+        specs,
         "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\n"
         "    ignore: [{rule: in-place-clip, reason: idle}]\n"
         "axes:\n  x: {feature: turn_rate, min: -90, max: 90, divisions: 36}\n"
         "  y: {feature: speed, min: 0, max: 5, divisions: 50}\n"
-        "fixes: {mirror: true, axis_clips: true, too_close: merge}\n"
+        "fixes: {mirror: true, axis_clips: true, too_close: merge}\n",
     )
     first = _build(manifest, tmp_path / "a")
     made = [s["name"] for s in first["samples"] if s["generated"]]  # type: ignore[attr-defined]

@@ -122,13 +122,13 @@ def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]
 
 
 def _about(diagnostic: Diagnostic) -> tuple[object, ...]:
+    """Which finding ``diagnostic`` is: its rule, clips and position (a fix's verdicts go by it)."""
     position = None if diagnostic.position is None else tuple(round(v, 6) for v in diagnostic.position)
     return (diagnostic.rule, tuple(sorted(diagnostic.clips)), position)
 
 
 def _attempt_key(kind: str, diagnostic: Diagnostic) -> tuple[object, ...]:
-    position = None if diagnostic.position is None else tuple(round(v, 6) for v in diagnostic.position)
-    return (kind, diagnostic.rule, tuple(sorted(diagnostic.clips)), position)
+    return (kind, *_about(diagnostic))
 
 
 Score = tuple[int, int, float]

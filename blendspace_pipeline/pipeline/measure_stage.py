@@ -118,8 +118,9 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
     if len(poses) == len(clips):
         poses = []
     measured = [(clip.name, measure(clip, settings, time_range)) for clip in clips if clip.name not in poses]
-    for _name, measurement in measured if made else []:
-        measurement.notes.append(MADE_EARLIER_NOTE)
+    if made:
+        for _name, measurement in measured:
+            measurement.notes.append(MADE_EARLIER_NOTE)
     for _name, measurement in measured:
         measurement.notes += [
             f"animation {pose!r} of this file is a single frame (a pose): left out" for pose in poses
