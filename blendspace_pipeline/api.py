@@ -125,6 +125,8 @@ class SampleView:
     # Each joint's parent, an index into `joint_names` (-1: a root); () when unknown (a track set
     # without hierarchy, a view built without it).
     joint_parents: tuple[int, ...] = ()
+    # Who says the up axis: "manifest", "file" (its own axis settings) or "detected" (the body).
+    up_source: str = "detected"
 
     @property
     def holds_still(self) -> bool:

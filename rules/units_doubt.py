@@ -31,10 +31,13 @@ class UnitsDoubt(Rule):
         for samples in groups.values():
             # The reading most clips agree with (counted over the distinct readings: a library is
             # thousands of clips of a few readings); the clips that do not agree with it are odd.
+            # An up axis the file itself states is the file's (one rig exported Y up and Z up);
+            # its unit must still agree (the same rest offsets in two units: one is wrong).
+            read = [s for s in samples if s.up_source != "file"] or samples
             common = most_agreed(
-                Counter(_reading(s) for s in samples), lambda r: r[1], SAME_UNIT, lambda r: r[0]
+                Counter(_reading(s) for s in read), lambda r: r[1], SAME_UNIT, lambda r: r[0]
             )
-            odd = [s for s in samples if not _agree(_reading(s), common)]
+            odd = [s for s in samples if not _agree(_reading(s), common, any_up=s.up_source == "file")]
             if not odd:
                 continue
             details = ", ".join(
@@ -59,5 +62,5 @@ def _reading(sample: SampleView) -> tuple[str, float]:
     return sample.up_axis, sample.meters_per_unit
 
 
-def _agree(a: tuple[str, float], b: tuple[str, float]) -> bool:
-    return a[0] == b[0] and close(a[1], b[1], SAME_UNIT)
+def _agree(a: tuple[str, float], b: tuple[str, float], *, any_up: bool = False) -> bool:
+    return (any_up or a[0] == b[0]) and close(a[1], b[1], SAME_UNIT)

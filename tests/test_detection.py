@@ -40,7 +40,12 @@ def test_hostile_take_measures_right_without_overrides(spec: HostileSpec) -> Non
     m = measure(hostile.clip, AUTO, "auto")
     assert m.up_axis == spec.up
     assert m.meters_per_unit == pytest.approx(UNITS[spec.unit], rel=1e-12)
-    assert not m.guesses and not m.units_guessed
+    if spec.unit == "in":  # an adult in inches is a child in centimetres: read, and doubted
+        assert [(g.what, g.value, g.override) for g in m.guesses] == [
+            ("units", "in", "skeleton: {units: in} or {units: cm}")
+        ]
+    else:
+        assert not m.guesses and not m.units_guessed
     assert m.features["speed"] == pytest.approx(_signed(spec), rel=0.02)
     assert m.features["turn_rate"] == pytest.approx(spec.turn_rate, abs=1.0)
     assert m.range_used is not None
@@ -509,3 +514,59 @@ def test_swapped_hips_in_the_manifest_are_doubted_and_one_joint_for_both_is_refu
     assert doubt.hint is not None and doubt.hint.startswith(
         "if that reading is right, set `skeleton: {left_hip: LeftUpLeg"
     )
+
+
+def test_an_up_axis_the_file_states_is_not_replaced_by_the_rigs_other_clips(tmp_path: Path) -> None:
+    """One rig exported twice, Y up and Z up (an FBX with Blender's `axis_up='Z'`: the root carries
+    the turn, the rest offsets stay): each file states its axis. Pooled as "one rig, one answer",
+    the Z-up file was read Y up (a 1.4 m/s walk turning 30 deg/s read 0.97 m/s turning -101
+    deg/s), and units-doubt then failed the build. Truth: both read the walk; no doubt."""
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    clip = generate(GaitSpec("walk", speed=1.4, turn_rate=30.0, duration=2.0))
+    write_usd_clip(clip, folder / "walk_y.usda", meters_per_unit=1.0, up_axis="y")
+    stand = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)  # Y up turned to Z up
+    rotations, translations = clip.rotations.copy(), clip.translations.copy()
+    rotations[:, 0] = quat.multiply(np.broadcast_to(stand, rotations[:, 0].shape), rotations[:, 0])
+    translations[:, 0] = quat.rotate(np.broadcast_to(stand, rotations[:, 0].shape), translations[:, 0])
+    turned = Clip("walk_z", clip.source, clip.skeleton, rotations, translations, clip.fps)
+    write_usd_clip(turned, folder / "walk_z.usda", meters_per_unit=1.0, up_axis="z")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: rig\nclips:\n  - path: clips/*.usda\n", encoding="utf-8")
+    space = analyse(manifest)
+    by_name = {s.name: s.clip.measurement for s in space.samples}
+    assert {name: m.up_axis for name, m in by_name.items()} == {"walk_y": "y", "walk_z": "z"}
+    assert len({m.skeleton_key for m in by_name.values()}) == 1  # one rig
+    for m in by_name.values():
+        assert m.up_source == "file"
+        assert m.features["speed"] == pytest.approx(1.4, abs=0.01)
+        assert m.features["turn_rate"] == pytest.approx(30.0, abs=0.5)
+        assert not any("one rig, one answer" in note for note in m.notes)
+    assert not [d for d in space.diagnostics if d.rule == "units-doubt"]
+
+
+@pytest.mark.parametrize("scale", [0.32, 0.4, 0.5])
+def test_a_small_character_in_centimetres_is_not_read_silently_as_an_adult_in_inches(scale: float) -> None:
+    """A child's or a goblin's legs (0.25-0.41 m) in centimetres are an adult's in inches: read so,
+    at 2.5 times their speed, with no word (confidence 0.29 to 0.95). Now a `units` guess says
+    so (detection-guess), naming both units; `units: cm` settles it to the true speed."""
+    from blendspace_pipeline.motion.clip import Skeleton
+
+    base = generate(GaitSpec("w", speed=1.4, turn_rate=30.0, duration=2.0, stride_length=1.4))
+    factor = 100.0 * scale  # a scaled rig, written in centimetres, no unit stated (as a BVH)
+    sk = base.skeleton
+    small = Clip(
+        "child",
+        base.source,
+        Skeleton(sk.names, sk.parents, sk.rest_translations * factor, sk.rest_rotations),
+        base.rotations,
+        base.translations * factor,
+        base.fps,
+    )
+    read = measure(small, RigSettings())
+    assert read.units_guessed and [g.what for g in read.guesses] == ["units"]
+    stated = measure(small, RigSettings(units="cm"))
+    assert stated.features["speed"] == pytest.approx(1.4 * scale, rel=0.02)
+    assert not [g for g in stated.guesses if g.what == "units"]

@@ -344,6 +344,7 @@ def sample_view(
         else None,
         plant_phases=m.plant_phases,
         partial_stride=m.partial_stride,
+        up_source=m.up_source,
     )
 
 

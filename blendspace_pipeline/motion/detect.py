@@ -1016,7 +1016,8 @@ def resolve_units_guess(
     if body is not None:
         leg = _leg_length(clip, world_pos, body)
         if leg > 0.0:
-            return _unit_from_length(leg, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg (hip to ankle)", override)
+            found = _unit_from_length(leg, REFERENCE_LEG, _PLAUSIBLE_LEG, "leg (hip to ankle)", override)
+            return found[0], found[1], found[2] or _doubt_detected_unit(leg, found[0], override)
     if not clip.skeleton.has_hierarchy:
         return 1.0, "assumed metres", DetectionGuess("units", "m", "no skeleton hierarchy to size", override)
     height = hip_height(clip, world_pos, up_axis, root)
@@ -1024,6 +1025,40 @@ def resolve_units_guess(
         return 1.0, "assumed metres", DetectionGuess("units", "m", "no body to size", override)
     reference = REFERENCE_HIP_HEIGHT - _LOWEST_JOINT_HEIGHT
     return _unit_from_length(height, reference, _PLAUSIBLE_HIP_HEIGHT, "hip height", override)
+
+
+# A unit read from the legs with less confidence than this (`_unit_from_length`: 0 at the edge of
+# an adult's legs in that unit) is a guess: a child's legs in centimetres (0.3 m) read as an
+# adult's in inches with confidence 0.3, and its walk at 2.5 times its speed, without a word.
+_UNIT_CONFIDENT = 0.5
+
+
+def _doubt_detected_unit(leg: float, scale: float, override: str) -> DetectionGuess | None:
+    """A guess when the legs (``leg`` file units, read as ``scale`` m per unit) are an adult's
+    only near the edge of adult legs, or in inches, where centimetres make them a child's or a
+    goblin's (`_NO_ADULT_LEG`): a character of half an adult's size in centimetres reads as an
+    adult in inches, confidently. Inches are rare in game animation; centimetres are common."""
+    metres = leg * scale
+    edge = _PLAUSIBLE_LEG[1] / REFERENCE_LEG if metres >= REFERENCE_LEG else REFERENCE_LEG / _PLAUSIBLE_LEG[0]
+    confidence = max(0.0, 1.0 - abs(float(np.log(metres / REFERENCE_LEG))) / float(np.log(edge)))
+    unit = next((name for name, value in _CONVENTIONS.items() if abs(value / scale - 1.0) < 1e-9), None)
+    in_cm = leg * UNIT_METERS["cm"]
+    if unit == "in" and in_cm >= _NO_ADULT_LEG[0]:
+        return DetectionGuess(
+            "units",
+            "in",
+            f"the legs are {metres:.2f} m long in inches, or {in_cm:.2f} m (a child's) in centimetres",
+            "skeleton: {units: in} or {units: cm}",
+        )
+    if confidence < _UNIT_CONFIDENT:
+        return DetectionGuess(
+            "units",
+            unit or f"{scale:.4g} m per unit",
+            f"the legs are {metres:.2f} m long in {unit or 'that unit'}, near the edge of an adult's "
+            f"{_PLAUSIBLE_LEG[0]:g}-{_PLAUSIBLE_LEG[1]:g} m (confidence {confidence:.2f})",
+            override,
+        )
+    return None
 
 
 def _leg_length(clip: Clip, world_pos: FloatArray, body: BodyJoints) -> float:

@@ -20,7 +20,15 @@ import numpy as np
 
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton, rest_positions
-from blendspace_pipeline.motion.procedural import HIP_HEIGHT, _convert_up, _scaled, humanoid_skeleton
+from blendspace_pipeline.motion.procedural import (
+    HIP_HEIGHT,
+    GaitSpec,
+    _convert_up,
+    _path_at,
+    _scaled,
+    generate_planted,
+    humanoid_skeleton,
+)
 from blendspace_pipeline.motion.quaternions import FloatArray
 
 UNITS = {"mm": 0.001, "cm": 0.01, "m": 1.0, "in": 0.0254, "cmu": 0.0254 / 0.45}
@@ -690,3 +698,23 @@ def keyed_everywhere(clip: Clip, radians: float = 1e-4) -> Clip:
     wobble = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), radians * np.sin(phase))
     rotations = quat.multiply(clip.rotations, wobble)
     return replace(clip, rotations=quat.normalize(rotations), notes=list(clip.notes))
+
+
+def joined(name: str, parts: list[GaitSpec]) -> Clip:
+    """One long take of ``parts`` played one after the other (a LaFAN1 or 100STYLE take: a walk,
+    then a turn, then a run), each a planted-feet `generate_planted` clip that starts where and
+    facing as the one before it ended. All parts share the first's rate; every part after the
+    first drops its first frame (the last of the one before). Truth: each part's own spec."""
+    clips: list[Clip] = []
+    position, heading = (0.0, 0.0), 0.0
+    for part in parts:
+        spec = replace(part, name=name, fps=parts[0].fps, start_position=position, start_heading=heading)
+        clips.append(generate_planted(spec))
+        turned, ground = _path_at(spec, np.array([spec.duration]))
+        position, heading = (float(ground[0, 0]), float(ground[0, 1])), float(np.degrees(turned[0]))
+    first = clips[0]
+    return replace(
+        first,
+        rotations=np.concatenate([first.rotations] + [c.rotations[1:] for c in clips[1:]]),
+        translations=np.concatenate([first.translations] + [c.translations[1:] for c in clips[1:]]),
+    )

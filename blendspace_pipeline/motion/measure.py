@@ -18,6 +18,7 @@ from functools import lru_cache
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import stats
@@ -82,6 +83,9 @@ class Measurement:
     skeleton_key: str = ""
     # Stepping with no whole stride measured: the pelvis sway stays in turn and direction.
     partial_stride: bool = False
+    # Who says the up axis: "manifest", "file" (USD `upAxis`, glTF, FBX axis settings) or
+    # "detected" (the body). A stated axis is never pooled with other clips' readings.
+    up_source: str = "detected"
 
     def __post_init__(self) -> None:
         # The cache stores measurements as JSON (`pipeline.cache`): rebuild the nested values.
@@ -208,11 +212,14 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         notes += _stated_holds(whole_pos, first, stop, clip.fps)
     ground = _ground_basis(up_axis)
     if auto:
+        part_posed = (whole_rot[first:stop], whole_pos[first:stop])
+        facing_ground = facing.vectors(*part_posed) @ ground.T
         span = steady_span(
             clip.trimmed(first, stop),
             settings,
-            (whole_rot[first:stop], whole_pos[first:stop]),
+            part_posed,
             root.positions(whole_pos[first:stop]) @ ground.T,
+            np.unwrap(np.arctan2(facing_ground[:, 1], facing_ground[:, 0])),
         )
         if span is None:
             notes.append("range: auto found no steady gait cycles; the whole clip is measured")
@@ -315,6 +322,7 @@ def measure(clip: Clip, settings: RigSettings, time_range: TimeRange = None) -> 
         else None,
         skeleton_key=skeleton_key(clip),
         partial_stride=partial_stride,
+        up_source="manifest" if settings.up != "auto" else "file" if clip.up_axis is not None else "detected",
     )
 
 
@@ -402,22 +410,34 @@ def _skeleton_key(
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-# range: auto keeps whole cycles whose speed is within this fraction of the steady speed and
-# whose length is within this fraction of the median cycle (a start or stop cycle is slower).
+# range: auto keeps whole cycles whose speed is within this fraction of the steady speed, whose
+# length is within this fraction of the steady cycle's (a start or stop cycle is slower), and
+# whose turn differs from the steady turn by at most the larger of these degrees per cycle and
+# this fraction of it (a walk that goes straight, then turns, is two parts; a wider band let a
+# cycle half way between them, the change of gait, join the two into one).
 _STEADY_SPEED_TOLERANCE = 0.08
 _STEADY_PERIOD_TOLERANCE = 0.15
+_STEADY_TURN_DEGREES = 5.0
+_STEADY_TURN_FRACTION = 0.15
 
 
 def steady_span(
-    clip: Clip, settings: RigSettings, posed: tuple[FloatArray, FloatArray], ground: FloatArray
+    clip: Clip,
+    settings: RigSettings,
+    posed: tuple[FloatArray, FloatArray],
+    ground: FloatArray,
+    heading: FloatArray,
 ) -> tuple[int, int] | None:
     """(first, stop) frames of the steady locomotion part: the longest run of whole gait cycles
-    at the steady speed (the T-pose, the start from standing and the stop left out).
+    that agree in speed, cycle length and turn (the T-pose, the start from standing and the stop
+    left out; of a walk then a turn, or a walk then a run, one part, not an average of both).
 
     Cycles run from one left-passes-right foot crossing to the next (`phase.foot_signal`); each
     one's speed is its chord over its length in the ground plane (``ground``: the root's (F, 2)
-    ground positions, any unit). The steady speed is the median of the faster half of the
-    cycles, so a take with long starts and stops still finds its walk.
+    ground positions, any unit), its turn the change of ``heading`` (radians per frame, unwrapped)
+    between its ends, at the same stride phase (so the pelvis sway cancels). Each cycle in turn
+    is the reference; the longest run of cycles agreeing with one wins, and the run is taken again
+    around its own median cycle, so one odd reference cycle does not cut a steady part short.
     """
     found = stride_starts(clip, settings, posed)
     if found is None or len(found[0]) < 2:
@@ -427,28 +447,55 @@ def steady_span(
     at = np.stack([np.interp(ups, frames, ground[:, 0]), np.interp(ups, frames, ground[:, 1])], axis=1)
     lengths = np.diff(ups)
     speeds = np.linalg.norm(np.diff(at, axis=0), axis=1) / lengths
-    faster = np.sort(speeds)[len(speeds) // 2 :]
-    reference = stats.median(faster)
-    if reference <= 0.0:
+    turns = np.degrees(np.diff(np.interp(ups, frames, heading)))  # degrees per cycle
+
+    def agreeing(speed: float, length: float, turn: float) -> NDArray[np.bool_]:
+        agree: NDArray[np.bool_] = (
+            (np.abs(speeds - speed) <= _STEADY_SPEED_TOLERANCE * speed)
+            & (np.abs(lengths - length) <= _STEADY_PERIOD_TOLERANCE * length)
+            & (np.abs(turns - turn) <= max(_STEADY_TURN_DEGREES, _STEADY_TURN_FRACTION * abs(turn)))
+        )
+        return agree
+
+    # On a tie, the cycle nearest the median of the faster half of the cycles first (a take with
+    # long starts and stops, or no steady part at all, still finds its walk).
+    faster = stats.median(np.sort(speeds)[len(speeds) // 2 :])
+    best: tuple[int, int] | None = None
+    for k in np.argsort(np.abs(speeds - faster), kind="stable"):
+        if speeds[k] <= 0.0:
+            continue
+        run = _longest_run(agreeing(float(speeds[k]), float(lengths[k]), float(turns[k])))
+        if run is not None and (best is None or run[1] - run[0] > best[1] - best[0]):
+            best = run
+    if best is None:
         return None
-    typical = stats.median(lengths)
-    steady = (np.abs(speeds - reference) <= _STEADY_SPEED_TOLERANCE * reference) & (
-        np.abs(lengths - typical) <= _STEADY_PERIOD_TOLERANCE * typical
+    middle = slice(best[0], best[1])
+    again = _longest_run(
+        agreeing(
+            float(stats.median(speeds[middle])),
+            float(stats.median(lengths[middle])),
+            float(stats.median(turns[middle])),
+        )
     )
+    if again is not None and again[1] - again[0] >= best[1] - best[0]:
+        best = again
+    first = int(np.floor(ups[best[0]] + 0.5))
+    last = int(np.floor(ups[best[1]] + 0.5))
+    return first, min(last, len(ground) - 1) + 1
+
+
+def _longest_run(mask: NDArray[np.bool_]) -> tuple[int, int] | None:
+    """(start, stop) of the longest run of True in ``mask`` (the first of equal ones), or None."""
     best: tuple[int, int] | None = None
     start = None
-    for index, ok in enumerate([*steady.tolist(), False]):
+    for index, ok in enumerate([*mask.tolist(), False]):
         if ok and start is None:
             start = index
         elif not ok and start is not None:
             if best is None or index - start > best[1] - best[0]:
                 best = (start, index)
             start = None
-    if best is None:
-        return None
-    first = int(np.floor(ups[best[0]] + 0.5))
-    last = int(np.floor(ups[best[1]] + 0.5))
-    return first, min(last, len(ground) - 1) + 1
+    return best
 
 
 @lru_cache(maxsize=16)

@@ -58,8 +58,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # held keys it keeps (17 was used by intermediate versions); 19: a posed frame's legs outrank a
 # moving coat's chains (feet before none, both looks ranked together); 20: glTF key times rounded
 # to a few decimals read at their rate, a clip an earlier build made is read `tpose: keep`; 21: the
-# same as finished (glTF keys half a second apart are poses; 20 was used by intermediate versions).
-MEASUREMENT_REVISION = 21
+# same as finished (glTF keys half a second apart are poses; 20 was used by intermediate versions);
+# 22: `up_source` (a file's stated axis is not pooled), unit and `range: auto` doubts.
+MEASUREMENT_REVISION = 22
 
 
 def cache_key(

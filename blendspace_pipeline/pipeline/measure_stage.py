@@ -352,7 +352,9 @@ def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Res
     Where detection read them differently, the reading most of the confident clips share (else
     most of all clips) wins and the others are measured again with it, saying so in their notes.
     Only detected values are pooled: clips whose entry sets `skeleton.units` / `skeleton.up` keep
-    them, and a set that still disagrees is the `units-doubt` error naming the odd ones.
+    them, and so do clips whose file states them (an FBX exported Z up beside the same rig's Y-up
+    export: the file's axis had been replaced by the other's, and a walk read 100 deg/s of turn).
+    A set that still disagrees is the `units-doubt` error naming the odd ones.
     """
     groups: dict[str, list[tuple[int, int]]] = {}
     for index, (job, result) in enumerate(zip(jobs, results, strict=True)):
@@ -360,7 +362,8 @@ def _one_answer_per_skeleton(jobs: list[Job], results: list[Result]) -> list[Res
         if isinstance(result, InputError) or settings.units != "auto" or settings.up != "auto":
             continue
         for position, (_, measurement) in enumerate(result):
-            if measurement.skeleton_key:
+            stated = measurement.up_source != "detected" or measurement.units_source == "file"
+            if measurement.skeleton_key and not stated:
                 groups.setdefault(measurement.skeleton_key, []).append((index, position))
     redo: dict[int, tuple[str, float]] = {}
     for members in groups.values():
