@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from blendspace_pipeline.motion.clip_ops.feet import clip_contacts, contact_join
 from blendspace_pipeline.motion.clip_ops.phase import detect_cycle
 from blendspace_pipeline.motion.contacts import FootContacts, detect_contacts, plant_phases, sync_markers
 from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.hostile import in_place
 from blendspace_pipeline.motion.measure import measure
 from blendspace_pipeline.motion.procedural import GaitSpec, generate, generate_planted, planted_truth
 from blendspace_pipeline.readers import read_clips
@@ -239,3 +241,59 @@ def test_real_data_build_carries_contacts_where_legs_are_known(tmp_path: Path) -
     assert all(0.0 <= a < b <= cmu["features"]["duration"] + 1e-3 for a, b in cmu["contacts"]["left"]), cmu
     # Godot Animation resources carry tracks without the hierarchy: no feet to put down.
     assert by_source["walking_nogun-cycle.tres"].get("contacts") is None
+
+
+def _stairs(rise: float, tread: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Steps of ``rise`` metres, ``tread`` deep, centred on multiples of ``tread`` (the 0.6 m stride
+    of `ON_SLOPES`'s climb plants each foot on every other tread's middle)."""
+    return lambda z: rise * np.floor(z / tread + 0.5)
+
+
+# Ground that is not flat: slopes up and down, stairs up and down (its height at each world Z).
+GROUNDS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "slope 8%": lambda z: 0.08 * z,
+    "slope 25%": lambda z: 0.25 * z,
+    "down 30%": lambda z: -0.3 * z,
+    "stairs 17 cm": _stairs(0.17, 0.3),
+    "stairs down 15 cm": _stairs(-0.15, 0.3),
+}
+ON_SLOPES = [
+    GaitSpec("walk", speed=1.4, duration=3.0, stride_length=1.4, fps=30.0),
+    GaitSpec("run", speed=3.5, duration=2.0, stride_length=2.8, fps=60.0),
+    GaitSpec("climb", speed=0.6, duration=3.0, stride_length=0.6, fps=120.0),
+]
+
+
+# Stairs only at the climb's 0.6 m stride (a 1.4 m stride skips steps).
+ON_GROUNDS = [(s, g) for s in ON_SLOPES for g in GROUNDS if "stairs" not in g or s.name == "climb"]
+
+
+@pytest.mark.parametrize(("spec", "ground"), ON_GROUNDS, ids=[f"{s.name}-{g}" for s, g in ON_GROUNDS])
+def test_contacts_on_slopes_and_stairs_match_the_planted_truth(spec: GaitSpec, ground: str) -> None:
+    """The floor was one height for the whole take (its 5th percentile): on a slope or stairs
+    only the plants at the bottom were near it, and every later one was lost (and the plant
+    phases with them), without a word. Each foot's floor is now the ground under it."""
+    clip = generate_planted(spec, ground=GROUNDS[ground])
+    truth = planted_truth(spec)
+    found = clip_contacts(clip, SETTINGS, forward_kinematics(clip)[1], meters_per_unit=1.0, up_axis="y")
+    assert found is not None
+    for foot in ("left", "right"):
+        # A slow foot leaves the floor slowly: on flat ground the 0.6 m/s walk's contacts end
+        # 0.02 s after the truth's lift-off too. On stairs the swing rises to the next step
+        # from its first frame (it leaves the floor 0.04 s before the truth's end of stance),
+        # and down them it drops onto the step below (it lands 0.06 s after the truth's).
+        tolerance = 0.08 if "stairs" in ground else max(2.0 / clip.fps, 0.03)
+        _spans_match(found.of(foot), truth.contacts[foot], tolerance)
+
+
+@pytest.mark.parametrize("spec", [g for g in GAITS if g.speed > 0.0], ids=lambda s: s.name)
+def test_contacts_of_an_in_place_clip_match_its_root_motion_clip(spec: GaitSpec) -> None:
+    """An in-place clip (Mixamo's "In Place", a treadmill take) slides each planted foot back under
+    the body at the walk's speed: no frame was slow enough for a contact, so it had none and no
+    sync markers. Its contacts are the root-motion clip's."""
+    clip = in_place(generate_planted(spec))
+    truth = planted_truth(spec)
+    found = clip_contacts(clip, SETTINGS, forward_kinematics(clip)[1], meters_per_unit=1.0, up_axis="y")
+    assert found is not None
+    for foot in ("left", "right"):
+        _spans_match(found.of(foot), truth.contacts[foot], 2.0 / clip.fps)

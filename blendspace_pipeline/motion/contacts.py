@@ -19,6 +19,7 @@ the circle; sync markers are those starts, named like Unreal's (``LeftFootDown``
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -46,6 +47,20 @@ _RELEASE = 1.4
 _MIN_EVENT = 0.05
 # Smoothing window of the speed signal, seconds.
 _SMOOTH = 0.05
+# Uneven ground (a slope, stairs): where the body climbs or descends over the take (its height's
+# trend) more than this many metres and more than a foot's "near the floor" allows, each frame's
+# floor is the lowest the foot came over that spot of ground (cells of `_GROUND_CELL` metres and
+# their neighbours), not the take's one floor: later plants were all above that floor, and lost.
+# Below it the one floor stands (a flat capture's pelvis drifts a few centimetres: CMU 131_01's 8).
+_UNEVEN = 0.1
+_GROUND_CELL = 0.1
+# In place (the body ends under this many m/s from where it started): a planted foot slides back
+# under the body at the walk's speed (a treadmill, Mixamo's "In Place"); when both feet slide
+# alike at `_CONVEYOR` m/s or more, that slide is the ground's, and each foot's speed is taken
+# relative to it (the slide near each frame: within `_BELT_WINDOW` seconds either side).
+_IN_PLACE_TRAVEL = 0.1
+_CONVEYOR = 0.2
+_BELT_WINDOW = 0.25  # seconds either side
 
 
 @dataclass(frozen=True)
@@ -187,25 +202,132 @@ def detect_contacts(
     duration = (frames - 1) / fps
     travel = float(vector_norm(np.diff(centre, axis=0)).sum()) / duration if duration > 0 else 0.0
     speed_limit = _PLANTED_SPEED + _PLANTED_SPEED_SHARE * travel
+    # In place: the body ends where it started (its limbs' swing adds path, not displacement).
+    still = duration <= 0 or float(vector_norm(centre[-1] - centre[0])) / duration < _IN_PLACE_TRAVEL
+    climb = _climb(_joint_mean(world_pos, meters_per_unit)[:, up] * up_sign)
     window = max(1, round(_SMOOTH * fps))
     reach = max(1, round(0.5 * _SMOOTH * fps))
+    signals = [
+        [_FootSignal.of(world_pos[:, j], meters_per_unit, up, up_sign, ground, window) for j in joints]
+        for joints in feet
+    ]
+    belt = still and _feet_share_a_belt([chain[0] for chain in signals], fps)
     found = []
-    for joints in feet:
+    for chain in signals:
         planted = np.zeros(frames, dtype=bool)
-        for joint in joints:
-            # Metres; x * 1.0 is x, so a clip in metres (and an up axis pointing up) is read in place.
-            position = (
-                world_pos[:, joint] if meters_per_unit == 1.0 else world_pos[:, joint] * meters_per_unit
-            )
-            height = _smooth(position[:, up] if up_sign == 1.0 else up_sign * position[:, up], window)
-            floor, high = stats.percentiles(height, (_FLOOR_PERCENTILE, 100.0 - _FLOOR_PERCENTILE))
-            lift = high - floor
-            near = float(np.clip(_HEIGHT_SHARE * lift, *_HEIGHT_BOUNDS))
-            speed = _ground_speed(position[:, ground], fps, reach)
-            low = height - floor
+        for foot in chain:
+            speed = _ground_speed(foot.track, fps, reach)
+            low, near = foot.height - foot.floor, foot.near
+            if belt:
+                speed = _on_the_belt(foot.track, fps, reach, low <= near, speed)
+            if climb > max(
+                near, _UNEVEN
+            ):  # a slope or stairs: the floor under the foot, and its lift over it
+                low = foot.height - _floor_under(foot.height, foot.track)
+                lift = stats.percentiles(low, (100.0 - _FLOOR_PERCENTILE,))[0]
+                near = float(np.clip(_HEIGHT_SHARE * lift, *_HEIGHT_BOUNDS))
             planted |= _hysteresis(low, near, speed, speed_limit)
         found.append(_intervals(planted, fps))
     return FootContacts(found[0], found[1], duration)
+
+
+@dataclass(frozen=True)
+class _FootSignal:
+    """One joint of a foot in metres: its smoothed height over the up axis, its ground track, the
+    take's floor under it (a low percentile) and how near that floor counts as down."""
+
+    height: FloatArray
+    track: FloatArray
+    floor: float
+    near: float
+
+    @classmethod
+    def of(
+        cls,
+        position: FloatArray,
+        meters_per_unit: float,
+        up: int,
+        up_sign: float,
+        ground: list[int],
+        window: int,
+    ) -> _FootSignal:
+        # Metres; x * 1.0 is x, so a clip in metres (and an up axis pointing up) is read in place.
+        metres = position if meters_per_unit == 1.0 else position * meters_per_unit
+        height = _smooth(metres[:, up] if up_sign == 1.0 else up_sign * metres[:, up], window)
+        floor, high = stats.percentiles(height, (_FLOOR_PERCENTILE, 100.0 - _FLOOR_PERCENTILE))
+        near = float(np.clip(_HEIGHT_SHARE * (high - floor), *_HEIGHT_BOUNDS))
+        return cls(height, metres[:, ground], floor, near)
+
+
+def _feet_share_a_belt(ankles: list[_FootSignal], fps: float) -> bool:
+    """Whether both feet slide alike while down, at `_CONVEYOR` m/s or more: the ground of an
+    in-place walk moving under the body. The feet of a spin on the spot slide too, but in
+    opposite directions (each around the body); they keep no belt."""
+    belts = []
+    for foot in ankles:
+        down = foot.height - foot.floor <= foot.near
+        if len(foot.track) < 2 or not down.any():
+            return False
+        belts.append(np.median(np.gradient(foot.track, axis=0)[down] * fps, axis=0))
+    sizes = [float(np.hypot(*b)) for b in belts]
+    return min(sizes) >= _CONVEYOR and float(np.hypot(*(belts[0] - belts[1]))) <= 0.5 * max(sizes)
+
+
+def _on_the_belt(track: FloatArray, fps: float, reach: int, down: BoolArray, speed: FloatArray) -> FloatArray:
+    """A foot's ground speed relative to the ground under an in-place clip: near each frame, the
+    median motion of the foot's frames near the floor (``down``: mostly its plants) within
+    `_BELT_WINDOW` seconds is the belt's (it turns with a turning walk); ``speed`` as it is
+    without a frame near the floor."""
+    frames = len(track)
+    if frames < 2 or not down.any():
+        return speed
+    velocity = np.gradient(track, axis=0) * fps
+    half = max(1, round(_BELT_WINDOW * fps))
+    # Each frame's window of the low frames' motion (NaN elsewhere); its median per axis.
+    low = np.where(down[:, None], velocity, np.nan)
+    padded = np.concatenate([np.full((half, 2), np.nan), low, np.full((half, 2), np.nan)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1, axis=0)  # (F, 2, W)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a window without a low frame: NaN
+        belt = np.nanmedian(windows, axis=2)
+    belt = np.nan_to_num(belt)
+    # The track as seen from the belt (its slide integrated and taken out), then the same
+    # windowed speed as `_ground_speed`.
+    slide = np.concatenate([np.zeros((1, 2)), np.cumsum(0.5 * (belt[1:] + belt[:-1]), axis=0) / fps])
+    return _ground_speed(track - slide, fps, reach)
+
+
+def _climb(height: FloatArray) -> float:
+    """How far (metres) the body's height ``height`` (per frame) rises or falls over the take, by
+    its least-squares trend: a stride's bob has none; a slope or stairs do."""
+    if len(height) < 2:
+        return 0.0
+    frames = np.arange(len(height), dtype=np.float64)
+    slope = float(np.polyfit(frames, height, 1)[0])
+    return abs(slope) * (len(height) - 1)
+
+
+def _floor_under(height: FloatArray, track: FloatArray) -> FloatArray:
+    """Per frame, the lowest the foot came over its spot of ground (``track``: its ground
+    positions, metres): its `_GROUND_CELL` cell and the eight around it. A foot lands on each
+    step or spot of the slope; between them its swing only passes over, too fast to plant."""
+    cells = np.floor(track / _GROUND_CELL).astype(np.int64)
+    keys, inverse = np.unique(cells, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    lowest = np.full(len(keys), np.inf)
+    np.minimum.at(lowest, inverse, height)
+    index = {(x, z): i for i, (x, z) in enumerate(keys.tolist())}
+    around = [
+        min(
+            lowest[j]
+            for dx in (-1, 0, 1)
+            for dz in (-1, 0, 1)
+            if (j := index.get((x + dx, z + dz))) is not None
+        )
+        for x, z in keys.tolist()
+    ]
+    floors: FloatArray = np.asarray(around)[inverse]
+    return floors
 
 
 def _hysteresis(low: FloatArray, near: float, speed: FloatArray, limit: float) -> BoolArray:

@@ -718,3 +718,16 @@ def joined(name: str, parts: list[GaitSpec]) -> Clip:
         rotations=np.concatenate([first.rotations] + [c.rotations[1:] for c in clips[1:]]),
         translations=np.concatenate([first.translations] + [c.translations[1:] for c in clips[1:]]),
     )
+
+
+def in_place(clip: Clip) -> Clip:
+    """``clip`` with its root's travel over the ground taken out (Mixamo's "In Place", a treadmill
+    take): the hips keep their height and turn, and each planted foot slides back under the body
+    at the walk's speed. Truth: the contacts and the stride of the clip with root motion."""
+    root = 0  # the procedural rig's root (Hips, or the ground-level Root joint)
+    up = "xyz".index((clip.up_axis or "y").lstrip("+-"))
+    translations = clip.translations.copy()
+    for axis in range(3):
+        if axis != up:
+            translations[:, root, axis] = translations[0, root, axis]
+    return replace(clip, translations=translations)

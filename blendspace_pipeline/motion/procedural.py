@@ -12,6 +12,7 @@ Conventions of the generated rig (before `up="z"` conversion): Y up, metres, the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -378,12 +379,16 @@ def generate_planted(
     up: str = "y",
     meters_per_unit: float = 1.0,
     source: Path | None = None,
+    ground: Callable[[FloatArray], FloatArray] | None = None,
 ) -> Clip:
     """Like `generate`, but each foot stays planted on the ground for ``duty`` of every stride
     (default 0.62 for walks, 0.38 for runs) and swings to the next footstep in between; feet land
     under the hip joints on the path, so the root still does exactly what ``spec`` says. Standing
     clips keep both feet down; turning on the spot steps about once a second. The hips sit low
     enough that every footstep is within reach (see `planted_truth` for the contact truth).
+    ``ground``: the floor's height (metres) at each world Z (a slope, stairs; default flat):
+    footsteps land on it and the hips ride it, so the contacts and the ground speed are those
+    of the flat clip.
     """
     from blendspace_pipeline.motion.ik import set_world_rotation, solve_leg
 
@@ -398,7 +403,10 @@ def generate_planted(
     hip_top = ANKLE_HEIGHT + 0.05 + float(np.sqrt(max(leg**2 - reach**2, 0.25 * leg**2)))
     drop = max(0.0, HIP_HEIGHT + (spec.bob if spec.speed > 1e-6 else 0.0) - hip_top)
     translations = base.translations.copy()
-    translations[:, base.skeleton.index("Hips"), 1] -= drop
+    hips = base.skeleton.index("Hips")
+    translations[:, hips, 1] -= drop
+    if ground is not None:
+        translations[:, hips, 1] += ground(translations[:, hips, 2])
     clip = Clip(
         base.name, base.source, base.skeleton, base.rotations.copy(), translations, base.fps, 1.0, "y"
     )
@@ -408,6 +416,8 @@ def generate_planted(
     everywhere = np.ones(frames, dtype=bool)
     for side_name, side, offset in (("Left", 1.0, 0.0), ("Right", -1.0, 0.5)):
         targets, yaw = _foot_targets(spec, times, duty, cycles, side, offset)
+        if ground is not None:
+            targets[:, 1] += ground(targets[:, 2])
         chain = (
             names.index(f"{side_name}UpLeg"),
             names.index(f"{side_name}Leg"),

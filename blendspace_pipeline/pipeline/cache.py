@@ -59,8 +59,9 @@ LIBRARY_VARIABLE = "BLENDSPACE_LIBRARY_STORE"
 # moving coat's chains (feet before none, both looks ranked together); 20: glTF key times rounded
 # to a few decimals read at their rate, a clip an earlier build made is read `tpose: keep`; 21: the
 # same as finished (glTF keys half a second apart are poses; 20 was used by intermediate versions);
-# 22: `up_source` (a file's stated axis is not pooled), unit and `range: auto` doubts.
-MEASUREMENT_REVISION = 22
+# 22: `up_source` (a file's stated axis is not pooled), unit and `range: auto` doubts; 23: foot
+# contacts on slopes, stairs and in-place clips.
+MEASUREMENT_REVISION = 23
 
 
 def cache_key(
