@@ -181,3 +181,61 @@ def test_the_fast_json_round_trips_every_float_and_name_and_the_standard_parser_
         assert [math.copysign(1.0, f) for f in back["floats"]] == [math.copysign(1.0, f) for f in floats]
     odd = cache.loads(cache.dumps({"x": [math.nan, math.inf, -math.inf]}).encode())["x"]
     assert math.isnan(odd[0]) and odd[1:] == [math.inf, -math.inf]
+
+
+@pytest.mark.parametrize("pattern", ["clips/**/*.bvh", "clips/*/*.bvh"])
+def test_a_clip_added_to_a_globbed_folder_that_held_none_rebuilds(
+    pattern: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The stamp watched only the folders that held a clip: a clip added to an empty sub-folder
+    that a `**` (or `*/`) glob looks in replayed the old build (8 samples for 9)."""
+    manifest = _project(tmp_path)
+    (tmp_path / "clips" / "more").mkdir()
+    (tmp_path / "clips" / "more" / "deeper").mkdir()
+    for spec in SPECS:  # the clips one folder down, so both patterns find them
+        (tmp_path / "clips" / f"{spec.name}.bvh").rename(tmp_path / "clips" / "more" / f"{spec.name}.bvh")
+    manifest.write_text(
+        f"schema_version: 1\nname: gait\nclips:\n  - path: '{pattern}'\noutput: {{formats: [json]}}\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "clips" / "empty").mkdir()
+    argv = ["build", str(manifest), "--out", str(tmp_path / "out"), "--no-fix"]
+    Counter(monkeypatch)
+    assert "built 4 samples" in _run(argv, capsys)[1]
+    assert "built 4 samples" in _run(argv, capsys)[1]  # replayed
+    write_bvh_clip(
+        generate(GaitSpec("jog", speed=2.5, duration=1.0)), tmp_path / "clips" / "empty" / "jog.bvh"
+    )
+    assert "built 5 samples" in _run(argv, capsys)[1]
+    if "**" in pattern:  # and two levels down
+        write_bvh_clip(
+            generate(GaitSpec("dash", speed=5.0, duration=1.0)),
+            tmp_path / "clips" / "more" / "deeper" / "dash.bvh",
+        )
+        assert "built 6 samples" in _run(argv, capsys)[1]
+
+
+@pytest.mark.parametrize("broken", ["def broken(:\n", None])
+def test_a_plugin_fixed_or_added_after_a_failed_build_rebuilds(
+    broken: str | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A `plugins:` file that failed to import (or did not exist) was no input of the stamp: once
+    fixed (or written), the build replayed the plugin-error."""
+    manifest = _project(tmp_path)
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8") + "plugins: [rules/studio.py]\n", encoding="utf-8"
+    )
+    plugin = tmp_path / "rules" / "studio.py"
+    plugin.parent.mkdir()
+    if broken is not None:
+        plugin.write_text(broken, encoding="utf-8")
+    argv = ["build", str(manifest), "--out", str(tmp_path / "out"), "--no-fix"]
+    assert "plugin-error" in _run(argv, capsys)[1]
+    assert "plugin-error" in _run(argv, capsys)[1]  # replayed: nothing moved
+    plugin.write_text(
+        "from blendspace_pipeline.api import Rule\n\n\nclass Studio(Rule):\n"
+        "    slug = 'studio-nothing'\n    code = 'ST001'\n    severity = 'info'\n    summary = 'finds nothing'\n\n"
+        "    def check(self, space):\n        return iter(())\n",
+        encoding="utf-8",
+    )
+    assert "plugin-error" not in _run(argv, capsys)[1]

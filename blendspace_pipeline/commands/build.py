@@ -84,7 +84,9 @@ def _run(args: argparse.Namespace, inputs: list[Path], outputs: list[Path]) -> i
             continue
         diagnostics = result.space.all_diagnostics()
         worst = max(worst, exit_code(diagnostics, args.strict))
-        inputs += input_files(result.space) + stamp.rule_files(result.space)
+        inputs += (
+            input_files(result.space) + stamp.rule_files(result.space) + stamp.watched_paths(result.space)
+        )
         outputs += result.written
         if args.format == "sarif":
             sarif += diagnostics

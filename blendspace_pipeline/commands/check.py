@@ -79,7 +79,7 @@ def _run(args: argparse.Namespace, inputs: list[Path]) -> int:
             everything += report_input_error(args.format, error, manifest)
             continue
         spaces.append(space)
-        inputs += input_files(space) + stamp.rule_files(space)
+        inputs += input_files(space) + stamp.rule_files(space) + stamp.watched_paths(space)
         found = space.all_diagnostics()
         everything += found
         worst = max(worst, exit_code(found, args.strict))

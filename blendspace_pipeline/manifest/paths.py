@@ -311,6 +311,52 @@ def _walk_glob(loaded: LoadedManifest, root: Path, pattern: str, key: KeyPath) -
     return found
 
 
+def searched_folders(loaded: LoadedManifest, entries: Sequence[ClipEntry] | None = None) -> list[Path]:
+    """The folders the globs of ``entries`` (default: `clips:`) look in, the root of each even
+    when it does not exist yet: a clip added to any of them (also to a sub-folder that held no
+    clip) changes its modification time, and a build stamp (`pipeline.stamp`) watches them."""
+    folders: list[Path] = []
+    for entry in loaded.model.clips if entries is None else entries:
+        if not _is_glob(loaded, entry):
+            continue
+        root, pattern = _split_glob(loaded, _pattern(entry))
+        folders.append(root)
+        if "**" in pattern:
+            folders += _folders_under(root)
+        elif "/" in pattern:  # `clips/*/walk.bvh`: the folders its leading parts match
+            leading = pattern.rsplit("/", 1)[0]
+            folders += [root / name for name in glob.glob(leading, root_dir=root) if (root / name).is_dir()]
+    return folders
+
+
+def _folders_under(root: Path) -> list[Path]:
+    """Every folder below ``root`` a `**` glob enters (each real folder once; hidden ones skipped,
+    as `_walk_glob` skips them; at most `MAX_GLOB_ENTRIES` looked at)."""
+    found: list[Path] = []
+    seen: set[Path] = set()
+    pending = [root]
+    visited = 0
+    while pending and visited <= MAX_GLOB_ENTRIES:
+        folder = pending.pop()
+        try:
+            real = folder.resolve()
+            if real in seen:
+                continue
+            seen.add(real)
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for entry in entries:
+            visited += 1
+            try:
+                if not entry.name.startswith(".") and entry.is_dir():
+                    pending.append(Path(entry.path))
+                    found.append(Path(entry.path))
+            except OSError:
+                continue
+    return found
+
+
 def _matches(pattern: tuple[str, ...], names: tuple[str, ...]) -> bool:
     """Whether the path components ``names`` match the glob components (`**` = any folders)."""
     if not pattern:

@@ -224,3 +224,34 @@ def rule_files(space: object) -> list[Path]:
         if isinstance(layer, BetaSpace):
             files += rule_files(layer.space)
     return files
+
+
+def watched_paths(space: object) -> list[Path]:
+    """What a rerun must notice besides the files the run read (``space``: a
+    `space.model.BlendSpace`, its beta layers included): every `plugins:` file, also one that
+    failed to load or did not exist (fixing or adding it must rebuild, not replay the
+    plugin-error), the `BLENDSPACE_RULE_PATH` folders, and every folder a glob of `clips:` looks
+    in (a clip added to a sub-folder that held none had replayed the old build)."""
+    from blendspace_pipeline.checks.rule_engine import RULE_PATH_VARIABLE
+    from blendspace_pipeline.manifest.models import ClipEntry, StyleLayer
+    from blendspace_pipeline.manifest.paths import searched_folders
+    from blendspace_pipeline.space.model import BetaSpace, BlendSpace
+
+    assert isinstance(space, BlendSpace)
+    loaded = space.manifest
+    paths = searched_folders(loaded)
+    for declared in loaded.model.layers:  # a style layer's clips are globs of this manifest too
+        if isinstance(declared, StyleLayer):
+            entries = [ClipEntry(path=item) if isinstance(item, str) else item for item in declared.clips]
+            paths += searched_folders(loaded, entries)
+    for plugin in loaded.model.plugins:
+        candidate = Path(plugin.replace("\\", "/"))
+        if not candidate.is_absolute():
+            candidate = loaded.directory / candidate
+        if plugin.endswith(".py") or candidate.is_file():
+            paths.append(candidate)
+    paths += [Path(f) for f in os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep) if f]
+    for layer in space.layer_spaces:
+        if isinstance(layer, BetaSpace):
+            paths += watched_paths(layer.space)
+    return paths
