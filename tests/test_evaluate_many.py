@@ -193,3 +193,40 @@ def test_eval_command_rejects_a_bad_points_file(tmp_path: Path, capsys: pytest.C
     assert main(["eval", str(path), "--points", str(points)]) == 2
     err = capsys.readouterr().err
     assert f"{points}:2: row 2 is not two numbers" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "header",
+    ["speed,turn_rate", "y,x", '"speed", "turn_rate"', "\ufeffspeed,turn_rate", "turn_rate,speed", "x,y"],
+)
+def test_a_points_header_names_the_columns_in_any_order(
+    header: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A header was skipped unread: `speed,turn_rate` then `1.4,0` was evaluated at turn 1.4,
+    speed 0 (other clips, other weights), with no word. It names the columns now, by axis or
+    feature, as `--at` does."""
+    doc = make_doc(LOCOMOTION)
+    path = tmp_path / "space.blendspace.json"
+    path.write_text(doc.model_dump_json(), encoding="utf-8")
+    swapped = header.lstrip("\ufeff").replace('"', "").replace(" ", "") in ("speed,turn_rate", "y,x")
+    points = tmp_path / "points.csv"
+    points.write_text(f"{header}\n" + ("1.4,30\n" if swapped else "30,1.4\n"), encoding="utf-8")
+    assert main(["eval", str(path), "--points", str(points), "--format", "json"]) == 0
+    [result] = json.loads(capsys.readouterr().out)
+    want = evaluate(doc, 30.0, 1.4).to_json()
+    assert {w["clip"]: w["weight"] for w in result["weights"]} == pytest.approx(
+        {w["clip"]: w["weight"] for w in want["weights"]}
+    )
+
+
+def test_a_points_header_that_names_no_axis_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "space.blendspace.json"
+    path.write_text(make_doc(LOCOMOTION).model_dump_json(), encoding="utf-8")
+    points = tmp_path / "points.csv"
+    points.write_text("velocity,turn\n1.4,0\n", encoding="utf-8")
+    assert main(["eval", str(path), "--points", str(points)]) == 2
+    err = capsys.readouterr().err
+    assert f"{points}:1: the header row 'velocity,turn' does not name both axes" in err
+    assert "Traceback" not in err

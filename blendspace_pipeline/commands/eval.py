@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_batch(args: argparse.Namespace, doc: BlendSpaceDocument) -> int:
-    points = read_points(args.points)
+    points = read_points(args.points, doc)
     try:
         result = evaluate_many(
             doc, points, layers=parse_layer_values(args.layer), cull=args.cull, joint=args.joint
@@ -125,8 +125,11 @@ def _run_batch(args: argparse.Namespace, doc: BlendSpaceDocument) -> int:
     return EXIT_OK
 
 
-def read_points(path: Path) -> np.ndarray:
-    """(Q, 2) queries from a CSV file of ``x,y`` rows; a first row that is not numbers is a header."""
+def read_points(path: Path, doc: BlendSpaceDocument) -> np.ndarray:
+    """(Q, 2) queries from a CSV file of ``x,y`` rows. A first row that is not numbers is a header
+    naming the columns, by axis (``x``, ``y``) or feature (``turn_rate``, ``speed``), in either
+    order: a header ``speed,turn_rate`` had been skipped unread, and every row evaluated at the
+    swapped point. A header that names no axis is an error, not skipped."""
     try:
         text = sys.stdin.read() if str(path) == "-" else path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
@@ -134,6 +137,7 @@ def read_points(path: Path) -> np.ndarray:
             f"cannot read points: {error}", path=path, hint="give a CSV file of x,y rows"
         ) from None
     rows: list[tuple[float, float]] = []
+    order = (0, 1)  # the column of x, of y
     for number, line in enumerate(text.splitlines(), start=1):
         cells = [cell.strip() for cell in line.split(",")]
         if not line.strip() or line.lstrip().startswith("#"):
@@ -141,22 +145,40 @@ def read_points(path: Path) -> np.ndarray:
         try:
             if len(cells) != 2:
                 raise ValueError
-            x, y = float(cells[0]), float(cells[1])
+            values = float(cells[0]), float(cells[1])
         except ValueError:
             if not rows and number == 1:
-                continue  # a header row
+                order = _header_order(cells, doc, path)
+                continue
             raise InputError(
                 f"row {number} is not two numbers: {line.strip()!r}",
                 path=path,
                 line=number,
                 hint="each row is x,y in axis units, e.g. 0,1.4",
             ) from None
+        x, y = values[order[0]], values[order[1]]
         if not (math.isfinite(x) and math.isfinite(y)):
             raise InputError(f"row {number} is not finite", path=path, line=number, hint="use finite numbers")
         rows.append((x, y))
     if not rows:
         raise InputError("no points in the file", path=path, hint="each row is x,y in axis units, e.g. 0,1.4")
     return np.array(rows, dtype=np.float64)
+
+
+def _header_order(cells: list[str], doc: BlendSpaceDocument, path: Path) -> tuple[int, int]:
+    """The columns of x and y that a header row names (axis names or features, any order)."""
+    aliases: dict[str, int] = {axis.name: index for index, axis in enumerate(doc.axes)}
+    aliases.update({axis.feature: index for index, axis in enumerate(doc.axes)})
+    axes = [aliases.get(cell.strip("\"' \ufeff")) for cell in cells]
+    if len(cells) != 2 or sorted(a for a in axes if a is not None) != [0, 1]:
+        raise InputError(
+            f"the header row {','.join(cells)!r} does not name both axes",
+            path=path,
+            line=1,
+            hint=f"name the columns by axis or feature ({_axis_listing(doc)}), e.g. "
+            f"{doc.axes[0].feature},{doc.axes[1].feature}, or leave the header out for x,y",
+        )
+    return (axes.index(0), axes.index(1))
 
 
 def parse_at(text: str, doc: BlendSpaceDocument) -> tuple[float, float]:
