@@ -71,8 +71,11 @@ def provenance_of(generated: GeneratedClip) -> Provenance:
     )
 
 
-def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Path) -> list[Path]:
-    """Write ``generated`` into ``folder``; returns the files written."""
+def write_generated_clip(
+    space: BlendSpace, generated: GeneratedClip, folder: Path, stem: str | None = None
+) -> list[Path]:
+    """Write ``generated`` into ``folder`` as ``stem`` (default: `safe_file_stem` of its name; the
+    build gives `unique_stems` of the space's generated clips); returns the files written."""
     # The writers load USD (pxr) and scipy: imported here, so a build without fixes does not pay.
     from blendspace_pipeline.writers.gltf import write_gltf_clip
     from blendspace_pipeline.writers.usd_clip import write_usd_clip
@@ -84,18 +87,19 @@ def write_generated_clip(space: BlendSpace, generated: GeneratedClip, folder: Pa
     up = measured.measurement.up_axis if measured else clip.up_axis
     formats = clip_formats(space)
     record = provenance_of(generated)
+    stem = stem or safe_file_stem(clip.name)
     written: list[Path] = []
     if "usd" in formats or source_suffix(space) == CLIP_SUFFIXES["usd"]:
-        written.append(folder / f"{safe_file_stem(clip.name)}.usda")
+        written.append(folder / f"{stem}.usda")
         write_usd_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     if "glb" in formats:
-        written.append(folder / f"{safe_file_stem(clip.name)}.glb")
+        written.append(folder / f"{stem}.glb")
         write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     template = bvh_template(space, generated) if "bvh" in formats else None
     if template is not None:
         from blendspace_pipeline.writers.bvh import LayoutCannotHold, write_bvh_clip
 
-        written.append(folder / f"{safe_file_stem(clip.name)}.bvh")
+        written.append(folder / f"{stem}.bvh")
         try:
             write_bvh_clip(clip, written[-1], template=template, provenance=record)
         except LayoutCannotHold:

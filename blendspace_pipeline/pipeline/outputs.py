@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline import __version__
 from blendspace_pipeline.errors import InputError
-from blendspace_pipeline.motion.file_names import safe_file_stem
+from blendspace_pipeline.motion.file_names import safe_file_stem, unique_stems
 from blendspace_pipeline.pipeline.analysis import analyse
 from blendspace_pipeline.pipeline.blend_quality import blend_quality
 from blendspace_pipeline.pipeline.cache import cache_dir, file_sha256, write_atomic
@@ -366,10 +366,12 @@ def _write_outputs(
         for layer in space.layer_spaces
         if isinstance(layer, BetaSpace) and layer.name in layer_fixes
     ]
+    # One file per generated clip: names that would share a file name get unique ones.
+    stems = {id(sub): unique_stems(s.name for s in sub.samples if s.generated) for sub, _, _ in made}
     for sub, _, folder in made:
         for sample in sub.samples:
             if sample.generated:
-                sample.clip.source = out_dir / folder / f"{safe_file_stem(sample.name)}{source_suffix(sub)}"
+                sample.clip.source = out_dir / folder / f"{stems[id(sub)][sample.name]}{source_suffix(sub)}"
     document = to_document(space, out_dir)
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
@@ -455,7 +457,9 @@ def _write_outputs(
                 in_space = {s.name for s in sub.samples}
                 for name in sorted(state.generated):
                     if name in in_space:
-                        for path in write_generated_clip(sub, state.generated[name], staging / folder):
+                        for path in write_generated_clip(
+                            sub, state.generated[name], staging / folder, stems[id(sub)][name]
+                        ):
                             staged.append(path.relative_to(staging))
             for relative in staged:
                 verify_written(staging / relative)

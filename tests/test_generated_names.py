@@ -1,0 +1,67 @@
+"""Generated clips whose names would share a file: each gets its own file, and each sample's
+source is the file of its own clip (`motion.file_names.unique_stems`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion.detect import RigSettings
+from blendspace_pipeline.motion.file_names import safe_file_stem, unique_stems
+from blendspace_pipeline.motion.measure import measure
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.readers import read_clips
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+SPECS = [
+    GaitSpec("idle", duration=2.0),
+    GaitSpec("walk_fwd", speed=1.4, duration=1.0),
+    GaitSpec("run_fwd", speed=4.0, duration=1.0, stride_length=2.6),
+    GaitSpec("walk_bwd", speed=1.1, direction=180.0, duration=1.0, stride_length=1.1),
+    GaitSpec("walk_turn_left", speed=1.4, turn_rate=60.0, duration=1.5),
+    GaitSpec("walk_turn_right", speed=1.4, turn_rate=-60.0, duration=1.5),
+    # Mirrored to "spin right" and "spin_right": one file name, safe_file_stem's `spin_right`.
+    GaitSpec("spin left", turn_rate=90.0, duration=2.0),
+    GaitSpec("spin_left", turn_rate=45.0, duration=2.0),
+]
+
+
+def test_unique_stems_keep_plain_stems_and_part_only_the_names_that_clash() -> None:
+    names = ("spin left", "spin_left", "Run", "run")
+    stems = unique_stems(["walk", *names, "jog"])
+    assert stems["walk"] == "walk" and stems["jog"] == "jog"
+    clashing = [stems[n] for n in names]
+    assert len({s.casefold() for s in clashing}) == 4  # one file each, also without letter case
+    assert all(s.startswith(safe_file_stem(n) + "-") for n, s in zip(names, clashing, strict=True))
+    # The same name gets the same stem in any set it clashes in (rebuilds keep their file names).
+    assert unique_stems(["spin_left", "spin left"])["spin left"] == stems["spin left"]
+
+
+def test_generated_clips_whose_names_share_a_file_name_each_get_their_own(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two mirrors, `spin right` (-90 deg/s) and `spin_right` (-45 deg/s), were both written to
+    clips/spin_right.*: the second overwrote the first, and one sample's clip was the other's."""
+    (tmp_path / "clips").mkdir()
+    for spec in SPECS:
+        write_bvh_clip(generate(spec), tmp_path / "clips" / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\noutput: {formats: [json], clip_formats: [bvh]}\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--format", "json"]) in (0, 1)
+    capsys.readouterr()
+    doc = json.loads((out / "loco.blendspace.json").read_text(encoding="utf-8"))
+    generated = {s["name"]: s for s in doc["samples"] if s["generated"]}
+    assert {"spin right", "spin_right"} <= set(generated)
+    sources = {name: generated[name]["source"] for name in ("spin right", "spin_right")}
+    assert sources["spin right"] != sources["spin_right"]
+    for name, turn in (("spin right", -90.0), ("spin_right", -45.0)):
+        file = out / Path(sources[name]).with_suffix(".bvh")
+        [clip] = read_clips(file)
+        assert measure(clip, RigSettings()).features["turn_rate"] == pytest.approx(turn, abs=1.0), name
