@@ -86,6 +86,8 @@ class Measurement:
     # Who says the up axis: "manifest", "file" (USD `upAxis`, glTF, FBX axis settings) or
     # "detected" (the body). A stated axis is never pooled with other clips' readings.
     up_source: str = "detected"
+    # The other files the clip was read with (`readers.dependencies`: USD layers, glTF buffers).
+    dependencies: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         # The cache stores measurements as JSON (`pipeline.cache`): rebuild the nested values.

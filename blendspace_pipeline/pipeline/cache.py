@@ -77,6 +77,44 @@ def cache_key(
     return digest.hexdigest()
 
 
+def dependency_state(paths: list[Path]) -> list[list[str]]:
+    """Each dependency of a clip file (`readers.dependencies`) as [path, stat key, digest], with
+    "" for the stat key and digest of one that does not exist."""
+    state = []
+    for path in paths:
+        try:
+            info = path.stat()
+        except OSError:
+            state.append([str(path), "", ""])
+            continue
+        state.append([str(path), stat_key(path, info), content_digest(path)])
+    return state
+
+
+def dependency_settings(settings_key: str, state: list[list[str]]) -> str:
+    """``settings_key`` with a clip's dependencies' contents (`dependency_state`), for its cache
+    key: the same file read with another layer or buffer is another entry. Unchanged without
+    dependencies, so single-file clips keep their entries."""
+    if not state:
+        return settings_key
+    digest = hashlib.sha256("\n".join(f"{path}|{digest}" for path, _, digest in state).encode())
+    return f"{settings_key}|dependencies:{digest.hexdigest()}"
+
+
+def dependencies_moved(state: list[list[str]]) -> bool:
+    """Whether any dependency's stat moved since ``state`` was taken (or one appeared or went)."""
+    for path, known, _ in state:
+        try:
+            info = os.stat(path)
+        except OSError:
+            if known:
+                return True
+            continue
+        if stat_key(Path(path), info) != known:
+            return True
+    return False
+
+
 def stat_key(path: Path, info: os.stat_result) -> str:
     """What identifies one version of a file without reading it."""
     return f"{path.absolute()}|{info.st_size}|{info.st_mtime_ns}|{info.st_ino}"
@@ -227,35 +265,58 @@ class Pack:
         self.path = None if folder is None else folder / "packs" / f"{name.hexdigest()}.json"
         self.digests: dict[str, str] = {}
         self.entries: dict[str, Any] = {}
+        # Per stat key of a clip file with dependencies: their `dependency_state`.
+        self.dependencies: dict[str, list[list[str]]] = {}
         self.used_digests: dict[str, str] = {}
         self.used_entries: dict[str, Any] = {}
+        self.used_dependencies: dict[str, list[list[str]]] = {}
         if self.path is not None:
             try:
                 stored = loads(self.path.read_bytes())
                 self.digests, self.entries = dict(stored["digests"]), dict(stored["entries"])
-            except (OSError, ValueError, KeyError, TypeError):
+                self.dependencies = dict(stored.get("dependencies") or {})
+            except (OSError, ValueError, KeyError, TypeError, AttributeError):
                 pass  # no pack yet, or a damaged one: the per-clip cache still answers
 
     def digest(self, path: Path, info: os.stat_result) -> str | None:
         return self.digests.get(stat_key(path, info))
+
+    def dependencies_of(self, path: Path, info: os.stat_result) -> list[list[str]] | None:
+        """The `dependency_state` the last run read ``path`` with ([] for none), or None when
+        one of those files moved since (the clip is read again)."""
+        state = self.dependencies.get(stat_key(path, info), [])
+        return None if dependencies_moved(state) else state
 
     def load(self, key: str) -> list[tuple[str, Measurement]] | None:
         stored = self.entries.get(key)
         return None if stored is None else from_json(stored)
 
     def remember(
-        self, path: Path, info: os.stat_result, digest: str, key: str, measured: list[tuple[str, Measurement]]
+        self,
+        path: Path,
+        info: os.stat_result,
+        digest: str,
+        key: str,
+        measured: list[tuple[str, Measurement]],
+        dependencies: list[list[str]] | None = None,
     ) -> None:
         if settled(info):
             known = stat_key(path, info)
             self.used_digests[known] = digest
             remember_digest(known, digest)
+            if dependencies:
+                self.used_dependencies[known] = dependencies
         self.used_entries[key] = self.entries[key] if key in self.entries else to_json(measured)
 
     def save(self) -> None:
         """Write what this run used, unless it is what the pack already holds."""
         if self.path is None or (
-            self.used_digests == self.digests and self.used_entries.keys() == self.entries.keys()
+            self.used_digests == self.digests
+            and self.used_entries.keys() == self.entries.keys()
+            and self.used_dependencies == self.dependencies
         ):
             return
-        write_atomic(self.path, dumps({"digests": self.used_digests, "entries": self.used_entries}))
+        stored = {"digests": self.used_digests, "entries": self.used_entries}
+        if self.used_dependencies:
+            stored["dependencies"] = self.used_dependencies
+        write_atomic(self.path, dumps(stored))

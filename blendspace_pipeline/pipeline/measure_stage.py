@@ -25,6 +25,7 @@ from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_chunks
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import adapter_for, read_clips
+from blendspace_pipeline.readers.dependencies import file_dependencies
 from blendspace_pipeline.readers.limits import check_regular
 from blendspace_pipeline.readers.provenance import read_provenance
 from blendspace_pipeline.space.model import MeasuredClip
@@ -44,7 +45,7 @@ Measured = list[tuple[str, Measurement]]
 Result = Measured | InputError
 # What a worker sends back: the file's content digest and cache key with its measurements (a few
 # kilobytes), never the clip; input errors travel as values (their fields survive pickling).
-Keyed = tuple[str, str, Measured] | InputError
+Keyed = tuple[str, str, Measured, list[list[str]]] | InputError
 
 
 def rig_settings(settings: SkeletonSettings) -> RigSettings:
@@ -96,18 +97,22 @@ def measure_file(
     return _measure_keyed(Job(path, settings, time_range, project))[2]
 
 
-def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
+def _measure_keyed(job: Job) -> tuple[str, str, Measured, list[list[str]]]:
+    """(the file's digest, its cache key, its measurements, its dependencies' state)."""
     path, settings, time_range, project, library = job
     check_regular(path, what="clip file")  # hashing a FIFO for the cache key would hang
     digest = cache.content_digest(path)
-    key = cache.cache_key(path, settings.cache_key(), time_range, digest)
+    dependencies = cache.dependency_state(file_dependencies(path))
+    key = cache.cache_key(
+        path, cache.dependency_settings(settings.cache_key(), dependencies), time_range, digest
+    )
     cached = cache.load(key)
-    if cached is None and library and time_range is None:
+    if cached is None and library and time_range is None and not dependencies:
         from blendspace_pipeline.pipeline.library import lookup
 
         cached = lookup(library, digest, path, settings)
     if cached is not None:
-        return digest, key, cached
+        return digest, key, _with_dependencies(cached, dependencies), dependencies
     clips = read_clips(path, project=project)
     made = settings.tpose == "drop" and read_provenance(path) is not None
     settings = as_made(settings, made)
@@ -125,8 +130,17 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured]:
         measurement.notes += [
             f"animation {pose!r} of this file is a single frame (a pose): left out" for pose in poses
         ]
+    measured = _with_dependencies(measured, dependencies)
     cache.store(key, measured)
-    return digest, key, measured
+    return digest, key, measured, dependencies
+
+
+def _with_dependencies(measured: Measured, dependencies: list[list[str]]) -> Measured:
+    """``measured`` carrying the files the clip was read with (the build stamp watches them)."""
+    files = [path for path, _, _ in dependencies]
+    for _name, measurement in measured:
+        measurement.dependencies = files
+    return measured
 
 
 def _measure_job(job: Job) -> Keyed:
@@ -235,11 +249,13 @@ def _measure_all(job_list: list[Job], pack: cache.Pack, jobs: int, progress: Pro
             continue
         stats[index] = info
         digest = pack.digest(job.path, info)
-        if digest is not None:
-            key = cache.cache_key(job.path, job.settings.cache_key(), job.time_range, digest)
+        dependencies = pack.dependencies_of(job.path, info) if digest is not None else None
+        if digest is not None and dependencies is not None:
+            settings_key = cache.dependency_settings(job.settings.cache_key(), dependencies)
+            key = cache.cache_key(job.path, settings_key, job.time_range, digest)
             measured = pack.load(key)
             if measured is not None:
-                pack.remember(job.path, info, digest, key, measured)
+                pack.remember(job.path, info, digest, key, measured, dependencies)
                 results[index] = measured
                 continue
         todo.append(index)
@@ -255,9 +271,9 @@ def _measure_all(job_list: list[Job], pack: cache.Pack, jobs: int, progress: Pro
         if isinstance(keyed, InputError):
             results[index] = keyed
             continue
-        digest, key, measured = keyed
+        digest, key, measured, dependencies = keyed
         if index in stats:
-            pack.remember(job_list[index].path, stats[index], digest, key, measured)
+            pack.remember(job_list[index].path, stats[index], digest, key, measured, dependencies)
         results[index] = measured
     pack.save()
     return [r for r in results if r is not None]

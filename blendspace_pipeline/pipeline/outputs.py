@@ -114,11 +114,13 @@ def input_files(space: BlendSpace) -> list[Path]:
     """The files a build reads: its manifest, the clips, and those of its layers."""
     files = [space.manifest.path]
     files += [s.clip.source for s in space.samples if not s.generated]
+    files += [Path(f) for s in space.samples if not s.generated for f in s.clip.measurement.dependencies]
     for layer in space.layer_spaces:
         if isinstance(layer, BetaSpace):
             files += input_files(layer.space)
         else:
             files += [clip.source for clip in layer.clips]
+            files += [Path(f) for clip in layer.clips for f in clip.measurement.dependencies]
     return files
 
 

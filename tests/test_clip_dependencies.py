@@ -1,0 +1,113 @@
+"""A clip read with other files (a USD layer composing another, a `.gltf` with an external
+`.bin`): editing the other file re-measures the clip. Both the build stamp and the measurement
+cache had keyed the clip on its own file: the build kept the old numbers, even with the stamps
+deleted, until the cache was switched off."""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.pipeline import analysis, outputs
+from blendspace_pipeline.readers.dependencies import file_dependencies
+from blendspace_pipeline.writers.gltf import write_gltf_clip
+from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+OTHERS = [
+    GaitSpec("idle", duration=2.0),
+    GaitSpec("run", speed=4.0, duration=1.0, stride_length=2.6),
+    GaitSpec("back", speed=1.1, direction=180.0, duration=1.0, stride_length=1.1),
+]
+
+
+def _usd_with_a_layer(folder: Path, speed: float) -> Path:
+    """clips/walk.usda composes ../anim/walk_anim.usda (a sublayer) holding the animation."""
+    (folder / "anim").mkdir(exist_ok=True)
+    write_usd_clip(
+        generate(GaitSpec("walk", speed=speed, duration=1.0)),
+        folder / "anim" / "walk_anim.usda",
+        meters_per_unit=1.0,
+        up_axis="y",
+    )
+    shot = folder / "clips" / "walk.usda"
+    shot.write_text("#usda 1.0\n(\n    subLayers = [@../anim/walk_anim.usda@]\n)\n", encoding="utf-8")
+    return folder / "anim" / "walk_anim.usda"
+
+
+def _gltf_with_a_buffer(folder: Path, speed: float) -> Path:
+    """clips/walk.gltf with its buffer in ../bin/walk.bin (the GLB's JSON and BIN chunks apart)."""
+    glb = folder / "walk.glb"
+    write_gltf_clip(
+        generate(GaitSpec("walk", speed=speed, duration=1.0)), glb, meters_per_unit=1.0, up_axis="y"
+    )
+    data = glb.read_bytes()
+    (json_length,) = struct.unpack_from("<I", data, 12)
+    document = json.loads(data[20 : 20 + json_length])
+    (bin_length,) = struct.unpack_from("<I", data, 20 + json_length)
+    document["buffers"][0]["uri"] = "../bin/walk.bin"
+    (folder / "bin").mkdir(exist_ok=True)
+    (folder / "clips" / "walk.gltf").write_text(json.dumps(document), encoding="utf-8")
+    buffer = folder / "bin" / "walk.bin"
+    buffer.write_bytes(data[28 + json_length : 28 + json_length + bin_length])
+    glb.unlink()
+    return buffer
+
+
+@pytest.mark.parametrize("kind", ["usd", "gltf"])
+def test_editing_the_file_a_clip_is_read_with_re_measures_it(
+    kind: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "clips").mkdir()
+    for spec in OTHERS:
+        write_usd_clip(
+            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    make = _usd_with_a_layer if kind == "usd" else _gltf_with_a_buffer
+    other = make(tmp_path, 1.4)
+    assert file_dependencies(tmp_path / "clips" / f"walk.{'usda' if kind == 'usd' else 'gltf'}") == [other]
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: t\nclips:\n  - path: clips/*\noutput: {formats: [json]}\n", encoding="utf-8"
+    )
+    out = tmp_path / "out"
+    argv = ["build", str(manifest), "--out", str(out), "--no-fix"]
+    analyses = []
+    analyse = analysis.analyse
+
+    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+        analyses.append(1)
+        return analyse(*args, **kwargs)
+
+    monkeypatch.setattr(outputs, "analyse", counting)
+
+    def speed() -> float:
+        doc = json.loads((out / "t.blendspace.json").read_text(encoding="utf-8"))
+        return next(s["features"]["speed"] for s in doc["samples"] if s["name"] == "walk")
+
+    assert main(argv) in (0, 1)
+    assert speed() == pytest.approx(1.4, abs=0.02)
+    assert main(argv) in (0, 1) and len(analyses) == 1  # nothing moved: replayed
+    make(tmp_path, 2.5)  # the other file changes; the clip's own file is the same bytes
+    assert main(argv) in (0, 1) and len(analyses) == 2
+    assert speed() == pytest.approx(2.5, abs=0.02)
+    # The cache alone (no stamp: another output folder) reads the new layer or buffer too.
+    assert main(["build", str(manifest), "--out", str(tmp_path / "other"), "--no-fix"]) in (0, 1)
+    doc = json.loads((tmp_path / "other" / "t.blendspace.json").read_text(encoding="utf-8"))
+    assert next(s["features"]["speed"] for s in doc["samples"] if s["name"] == "walk") == pytest.approx(
+        2.5, abs=0.02
+    )
+    capsys.readouterr()
+    assert other.exists()
+
+
+def test_formats_of_one_file_have_no_dependencies(tmp_path: Path) -> None:
+    """A BVH or a GLB is read alone; a USD stage without composition arcs too."""
+    write_usd_clip(generate(OTHERS[0]), tmp_path / "idle.usda", meters_per_unit=1.0, up_axis="y")
+    write_gltf_clip(generate(OTHERS[0]), tmp_path / "idle.glb", meters_per_unit=1.0, up_axis="y")
+    for name in ("idle.usda", "idle.glb", "walk.bvh"):
+        assert file_dependencies(tmp_path / name) == []
