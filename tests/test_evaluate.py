@@ -550,17 +550,39 @@ def test_eval_command_rejects_bad_arguments(
         ('{"schema_version": 1, "name": ', "not valid JSON"),
         ('{"schema_version": 1, "name": "x"}', "not a blend-space document: axes"),
         (None, "cannot read"),
+        # These were internal errors (exit 3): a binary file, deep nesting, a huge integer.
+        (b"\x89PNG\r\n\x1a\n\x00\x00", "the file is not UTF-8 text"),
+        ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+        ('{"schema_version": ' + "9" * 5000 + "}", "a number too long to read"),
     ],
 )
-def test_eval_command_rejects_bad_documents(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str | None, message: str
+@pytest.mark.parametrize("command", ["eval", "export"])
+def test_eval_and_export_reject_bad_documents(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    content: str | bytes | None,
+    message: str,
+    command: str,
 ) -> None:
     path = tmp_path / "bad.blendspace.json"
-    if content is not None:
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    elif content is not None:
         path.write_text(content, encoding="utf-8")
-    assert main(["eval", str(path), "--at", "x=0,y=0"]) == 2
+    argv = (
+        ["--at", "x=0,y=0"] if command == "eval" else ["--engine", "godot", "--out", str(tmp_path / "x.tres")]
+    )
+    assert main([command, str(path), *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and "hint:" in err and "Traceback" not in err
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="no /dev/zero here")
+def test_eval_refuses_a_device_instead_of_reading_it_until_memory_runs_out(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["eval", "/dev/zero", "--at", "x=0,y=0"]) == 2
+    assert "not a regular file" in capsys.readouterr().err
 
 
 def test_eval_command_rejects_triangles_naming_missing_samples(

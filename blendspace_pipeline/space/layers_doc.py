@@ -11,6 +11,7 @@ every problem an `InputError` with a hint.
 from __future__ import annotations
 
 import json
+import stat
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -95,25 +96,45 @@ def read_document(path: Path) -> BlendSpaceDocument:
     Everything a user can get wrong (a missing file, broken JSON, a document from another tool
     or a hand edit that breaks the layout) becomes an `InputError` naming the file and the key.
     """
+    hint = "pass the N.blendspace.json that `blendspace build` wrote (in the manifest's output dir)"
     try:
+        # A regular file of bounded size: /dev/zero or a FIFO would be read until memory runs out.
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            raise InputError(
+                "the blend-space JSON is not a regular file (a device, FIFO or socket)", path=path, hint=hint
+            )
+        if info.st_size > MAX_DOCUMENT_BYTES:
+            raise InputError(
+                f"the blend-space JSON is {info.st_size / 1024**2:.0f} MB, over the {MAX_DOCUMENT_BYTES // 1024**2} MB "
+                "a document of 100,000 samples takes",
+                path=path,
+                hint=hint,
+            )
         text = path.read_text(encoding="utf-8")
     except OSError as error:
         raise InputError(
-            f"cannot read the blend-space JSON: {error.strerror or error}",
-            path=path,
-            hint="pass the N.blendspace.json that `blendspace build` wrote (in the manifest's output dir)",
+            f"cannot read the blend-space JSON: {error.strerror or error}", path=path, hint=hint
         ) from None
+    except UnicodeDecodeError:
+        raise InputError("not a blend-space JSON: the file is not UTF-8 text", path=path, hint=hint) from None
     try:
         raw = json.loads(text)
     except json.JSONDecodeError as error:
         raise InputError(
             f"not valid JSON: {error.msg}", path=path, line=error.lineno, column=error.colno, hint=_REBUILD
         ) from None
+    except RecursionError:
+        raise InputError("not a blend-space JSON: nested too deeply", path=path, hint=_REBUILD) from None
+    except ValueError:  # an integer of thousands of digits (Python's conversion limit)
+        raise InputError("not a blend-space JSON: a number too long to read", path=path, hint=_REBUILD) from None
     doc = _validated(raw, path)
     _check_consistency(doc, path)
     return doc
 
 
+# A build of 10,000 samples writes ~12 MB; ten times the samples with room to spare.
+MAX_DOCUMENT_BYTES = 1024 * 1024**2
 _REBUILD = "regenerate the file with `blendspace build MANIFEST` rather than editing it by hand"
 
 
