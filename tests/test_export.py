@@ -297,6 +297,16 @@ def test_godot_string_escapes_survive_the_parser() -> None:
     assert 'a "quoted" \\ name' in read_godot(export(doc, "godot").text).points
 
 
+def test_godot_strings_escape_every_control_character() -> None:
+    """A name read from a clip file may hold a control character: a NUL byte went into the
+    .tres raw. Every one is a `\\uXXXX` escape now, read back as the same name."""
+    odd = "walk\x00\x07\r\t\x1b\x85 end"
+    doc = make_doc({odd: (0.0, 0.0), "b": (90.0, 0.0), "c": (0.0, 4.5)})
+    text = export(doc, "godot").text
+    assert not any((ord(c) < 0x20 and c != "\n") or 0x7F <= ord(c) <= 0x9F for c in text)
+    assert odd in read_godot(text).points
+
+
 def _replay_godot_bounds(properties: list[tuple[str, Any]]) -> tuple[list[float], list[float]]:
     """Godot 4's loader calls each setter in file order on a new AnimationNodeBlendSpace2D.
 

@@ -762,3 +762,14 @@ def test_a_hand_position_outside_the_axes_is_an_error(tmp_path: Path) -> None:
     assert error.message == "clips[1].position: 99 is outside the y axis (speed) range [-3, 6]"
     assert where(error) == (6, 5)
     assert error.hint is not None and "axis" in error.hint
+
+
+@pytest.mark.parametrize("name", ["walk\\0", "walk\\a", "walk\\r", "walk\\u202e", "walk\\x85"])
+def test_a_clip_name_with_a_control_character_is_refused_at_its_line(tmp_path: Path, name: str) -> None:
+    """A name goes into every output and engine asset: a NUL, a bell, a carriage return or a
+    bidirectional override there is an error at the manifest's line, not a byte in a .tres."""
+    touch(tmp_path, "clips/walk.bvh")
+    error = load_error(
+        tmp_path, f'schema_version: 1\nname: t\nclips:\n  - path: clips/walk.bvh\n    name: "{name}"\n'
+    )
+    assert error.line == 5 and "control character" in error.message

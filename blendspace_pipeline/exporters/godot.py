@@ -203,8 +203,14 @@ def _vector(values: tuple[float, float]) -> str:
 
 
 def _string(text: str) -> str:
+    """A Godot string literal: backslash, quote and every control character escaped (a name read
+    from a clip file may hold one; a NUL byte had gone into the .tres raw)."""
     escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+    escaped = _CONTROL.sub(lambda m: f"\\u{ord(m.group()):04x}", escaped)
     return f'"{escaped}"'
+
+
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
 
 
 def _notes(space: EngineSpace) -> list[str]:

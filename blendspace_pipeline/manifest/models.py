@@ -81,6 +81,11 @@ class IgnoreEntry(_Model):
         return value
 
 
+# Control characters (C0, DEL, C1) and the bidirectional overrides and isolates (a name that
+# reads one way and sorts another).
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
+
+
 class MirrorTokens(_Model):
     """Name tokens swapped to mirror a clip (e.g. Left <-> Right)."""
 
@@ -152,6 +157,17 @@ class ClipEntry(_Model):
         description="Per-entry override of the top-level skeleton: keys (for mixed libraries); keys not "
         "set here come from the top level.",
     )
+
+    @field_validator("name")
+    @classmethod
+    def _printable_name(cls, value: str | None) -> str | None:
+        # A name goes into every output and engine asset (a Godot .tres took a NUL byte raw).
+        if value is not None and (odd := _UNPRINTABLE.search(value)):
+            raise rule_error(
+                f"the name holds the control character U+{ord(odd.group()):04X}",
+                "use letters, digits, spaces and punctuation in clip names",
+            )
+        return value
 
     @field_validator("range", mode="before")
     @classmethod

@@ -127,7 +127,9 @@ def read_document(path: Path) -> BlendSpaceDocument:
     except RecursionError:
         raise InputError("not a blend-space JSON: nested too deeply", path=path, hint=_REBUILD) from None
     except ValueError:  # an integer of thousands of digits (Python's conversion limit)
-        raise InputError("not a blend-space JSON: a number too long to read", path=path, hint=_REBUILD) from None
+        raise InputError(
+            "not a blend-space JSON: a number too long to read", path=path, hint=_REBUILD
+        ) from None
     doc = _validated(raw, path)
     _check_consistency(doc, path)
     return doc
