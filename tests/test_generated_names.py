@@ -65,3 +65,25 @@ def test_generated_clips_whose_names_share_a_file_name_each_get_their_own(
         file = out / Path(sources[name]).with_suffix(".bvh")
         [clip] = read_clips(file)
         assert measure(clip, RigSettings()).features["turn_rate"] == pytest.approx(turn, abs=1.0), name
+
+
+def test_a_glob_does_not_read_a_blend_space_asset_as_a_take(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`build --out .` puts `N.blendspace.usda` beside the manifest; a later `check` (which looks
+    for outputs in `output.dir`) globbed `**/*.usda` onto it and failed: "no UsdSkel Skeleton"."""
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    (tmp_path / "clips").mkdir()
+    for spec in SPECS[:6]:
+        write_usd_clip(
+            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    manifest = tmp_path / "glob.yaml"
+    manifest.write_text("schema_version: 1\nname: loco\nclips:\n  - path: '**/*.usda'\n", encoding="utf-8")
+    assert main(["build", str(manifest), "--out", str(tmp_path), "--no-fix"]) in (0, 1)
+    assert (tmp_path / "loco.blendspace.usda").exists()
+    capsys.readouterr()
+    assert main(["check", str(manifest)]) in (0, 1)
+    out = capsys.readouterr()
+    assert "UsdSkel" not in out.err + out.out
