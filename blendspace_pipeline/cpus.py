@@ -81,6 +81,26 @@ def auto_jobs() -> int:
     return usable_cpus() if sys.platform.startswith("linux") else 1
 
 
+# Local processes per usable CPU a command starts at most (`--jobs`, `index --workers`): measuring
+# is CPU-bound, so more only takes memory (60-200 MB each): `index --workers 1000` on 2 CPUs
+# started a thousand processes and ran the machine out of memory.
+PROCESSES_PER_CPU = 4
+
+
+def capped_processes(asked: int, option: str) -> int:
+    """``asked`` local processes, at most `PROCESSES_PER_CPU` per usable CPU (saying so on stderr
+    when it caps)."""
+    cpus = usable_cpus()
+    most = PROCESSES_PER_CPU * cpus
+    if asked <= most:
+        return asked
+    sys.stderr.write(
+        f"blendspace: {option} {asked} is more than {PROCESSES_PER_CPU} processes per CPU here "
+        f"({cpus} CPU{'s' if cpus != 1 else ''}): using {most}\n"
+    )
+    return most
+
+
 def usable_cpus(root: Path = Path("/")) -> int:
     """The CPUs this process can run on, at least 1: its affinity mask, capped by the CPU quota of
     its cgroups (v2 `cpu.max`, v1 `cpu.cfs_quota_us`; a quota of 1.5 CPUs counts as 2).

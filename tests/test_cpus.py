@@ -373,3 +373,18 @@ def test_a_command_runs_blas_in_its_own_thread(given: dict[str, str] | None, tmp
         assert found["env"] == given  # the user's count is theirs: nothing added
         if _affinity() > 1:
             assert found["native"] >= 1  # and BLAS does start its threads (the test can fail)
+
+
+def test_local_processes_are_capped_at_four_per_cpu(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`index --workers 1000` on 2 CPUs started a thousand processes (the machine ran out of
+    memory); `--jobs 1000` forked a worker per clip. Measuring is CPU-bound: at most 4 per CPU."""
+    from blendspace_pipeline import cpus
+    from blendspace_pipeline.commands._shared import _jobs
+
+    monkeypatch.setattr(cpus, "usable_cpus", lambda root=None: 2)
+    assert cpus.capped_processes(8, "--jobs") == 8 and capsys.readouterr().err == ""
+    assert cpus.capped_processes(1000, "--workers") == 8
+    assert "--workers 1000 is more than 4 processes per CPU here (2 CPUs): using 8" in capsys.readouterr().err
+    assert _jobs("1000") == 8

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
 from blendspace_pipeline.checks.trust import NO_PLUGINS_VARIABLE
-from blendspace_pipeline.cpus import JOBS_VARIABLE, auto_jobs
+from blendspace_pipeline.cpus import JOBS_VARIABLE, auto_jobs, capped_processes
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
 from blendspace_pipeline.pipeline.cache import LIBRARY_VARIABLE
@@ -154,7 +154,7 @@ def _jobs(text: str) -> int:
         ) from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} processes cannot measure anything: give 1 or more")
-    return value
+    return capped_processes(value, "--jobs")
 
 
 def exit_code(diagnostics: Sequence[Diagnostic], strict: bool) -> int:

@@ -4,10 +4,12 @@ into a shared store (per-clip measurements + a Parquet table) on Dask; see `pipe
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
+from blendspace_pipeline.cpus import capped_processes
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, UsageError
 
 HELP = "measure a whole mocap library into a shared store of features (on Dask)"
@@ -30,6 +32,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"not a folder: {', '.join(missing)}", hint="give the library's clip folders")
     if args.workers < 1:
         raise UsageError(f"--workers {args.workers}: need at least 1", hint="e.g. --workers 2")
+    if args.scheduler is None and not os.environ.get("DASK_SCHEDULER_ADDRESS"):  # a local cluster
+        args.workers = capped_processes(args.workers, "--workers")
     from blendspace_pipeline.pipeline.library import index_library
 
     start = time.perf_counter()
