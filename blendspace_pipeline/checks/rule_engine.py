@@ -20,6 +20,7 @@ whatever a rule yields is checked (`finding_problem`) before it can reach the ou
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import importlib
 import importlib.util
@@ -203,7 +204,8 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
     writes_bytecode = sys.dont_write_bytecode
     sys.dont_write_bytecode = True
     try:
-        spec.loader.exec_module(module)
+        with contextlib.redirect_stdout(sys.stderr):  # a plugin's print must not corrupt --format json
+            spec.loader.exec_module(module)
     except KeyboardInterrupt:
         raise
     except BaseException as error:  # even sys.exit: a broken plugin is a diagnostic, never a crash or an exit
@@ -216,14 +218,32 @@ def _load_path(path: Path, loaded: LoadedRules, origin: str) -> None:
 
 
 def _load_module_name(name: str, loaded: LoadedRules, origin: str) -> None:
+    """Import plugin module ``name`` from the installed packages: not from the working folder,
+    which `python -m blendspace_pipeline` puts first on `sys.path` (a manifest could run a file
+    from outside its project there, and the `blendspace` script would not find the same one)."""
+    here = {"", os.getcwd()}
+    saved = list(sys.path)
     try:
-        module = importlib.import_module(name)
+        sys.path[:] = [entry for entry in sys.path if entry not in here or _installed_here(entry)]
+        with contextlib.redirect_stdout(sys.stderr):  # a plugin's print must not corrupt --format json
+            module = importlib.import_module(name)
     except KeyboardInterrupt:
         raise
     except BaseException as error:  # SystemExit and custom BaseExceptions too: a diagnostic, not an exit
         loaded.problems.append(_import_failure(origin, error))
         return
+    finally:
+        sys.path[:] = saved
     loaded.add_module(module, origin)
+
+
+def _installed_here(entry: str) -> bool:
+    """Whether the working folder ``entry`` is itself where packages are installed (a folder
+    named on PYTHONPATH or a site folder that happens to be the working folder)."""
+    named = os.environ.get("PYTHONPATH", "").split(os.pathsep)
+    return bool(entry) and (
+        entry in named or os.path.abspath(entry) in {os.path.abspath(n) for n in named if n}
+    )
 
 
 def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> LoadedRules:
@@ -465,11 +485,12 @@ def run_rules(space: BlendSpace) -> None:
         try:
             # A fresh instance per run: options and severity are this manifest's, never a previous one's.
             rule = rule_class(severity=override, options=options.get(slug))
-            for item in rule.check(view):
-                problem = finding_problem(item, rule_class, known_clips)
-                if problem:
-                    raise TypeError(problem)
-                made.append(item)
+            with contextlib.redirect_stdout(sys.stderr):  # a rule's print must not corrupt --format json
+                for item in rule.check(view):
+                    problem = finding_problem(item, rule_class, known_clips)
+                    if problem:
+                        raise TypeError(problem)
+                    made.append(item)
         except KeyboardInterrupt:
             raise
         except BaseException as error:  # one broken rule (even one calling sys.exit) must not hide the others

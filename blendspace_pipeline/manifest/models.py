@@ -92,6 +92,21 @@ class MirrorTokens(_Model):
     left: str = Field(description="Token that marks left-side joints, e.g. 'Left' or '_l'.")
     right: str = Field(description="Token that marks right-side joints, e.g. 'Right' or '_r'.")
 
+    @model_validator(mode="after")
+    def _two_tokens(self) -> MirrorTokens:
+        # Empty or equal tokens pair every joint with itself: a "mirror" that swaps nothing was
+        # written, with no word.
+        if not self.left.strip() or not self.right.strip():
+            raise rule_error(
+                "a mirror token is empty", "write the two side tokens, e.g. {left: Left, right: Right}"
+            )
+        if self.left == self.right:
+            raise rule_error(
+                f"left and right are the same token {self.left!r}",
+                "write the two side tokens, e.g. {left: Left, right: Right}",
+            )
+        return self
+
 
 class SkeletonSettings(_Model):
     """How to read the rig; everything is auto-detected unless set here."""

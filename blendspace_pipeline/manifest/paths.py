@@ -137,6 +137,14 @@ def _files_of(loaded: LoadedManifest, entry: ClipEntry, key: KeyPath) -> list[Pa
             f"the entry is named {entry.name!r} but its glob {entry.path!r} matched {len(files)} files",
             f"a name belongs to one clip: drop `name:` or narrow the glob (it matched {_listing(files)})",
         )
+    if entry.position is not None and len(files) > 1:  # every clip of the glob had been put there
+        _fail(
+            loaded,
+            key,
+            f"the entry places its clip at {list(entry.position)} but its glob {entry.path!r} matched "
+            f"{len(files)} files",
+            f"a position belongs to one clip: give each clip its own entry (it matched {_listing(files)})",
+        )
     return files
 
 

@@ -11,6 +11,7 @@ every problem an `InputError` with a hint.
 from __future__ import annotations
 
 import json
+import math
 import stat
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -166,6 +167,8 @@ def _check_consistency(doc: BlendSpaceDocument, path: Path) -> None:
     if [axis.name for axis in doc.axes] != ["x", "y"]:
         raise InputError("the document must have exactly two axes, x then y", path=path, hint=_REBUILD)
     for axis in doc.axes:
+        if not (math.isfinite(axis.min) and math.isfinite(axis.max)):
+            raise InputError(f"axis {axis.name} has a range that is not finite", path=path, hint=_REBUILD)
         if not axis.max > axis.min:
             raise InputError(
                 f"axis {axis.name} has min {axis.min} >= max {axis.max}", path=path, hint=_REBUILD
@@ -181,6 +184,13 @@ def _check_space(prefix: str, samples: list[SampleDoc], triangles: list[list[int
         if len(sample.position) != 2:
             raise InputError(
                 f"{prefix}sample {sample.name!r} has {len(sample.position)} coordinates, not 2",
+                path=path,
+                hint=_REBUILD,
+            )
+        if not all(math.isfinite(v) for v in sample.position):
+            # eval blended with it and export wrote `Vector2(nan, 1)`: no engine plays that.
+            raise InputError(
+                f"{prefix}sample {sample.name!r} is at {sample.position}, not a finite position",
                 path=path,
                 hint=_REBUILD,
             )

@@ -1,0 +1,108 @@
+"""Hostile inputs found by a second pass over the manifest, the plugins and the documents: each
+was read silently (or wrongly) before; each is refused, or read right, now."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from blendspace_pipeline.cli import main
+from blendspace_pipeline.errors import InputError
+from blendspace_pipeline.manifest import load_manifest
+from blendspace_pipeline.motion.procedural import GaitSpec, generate
+from blendspace_pipeline.writers.bvh import write_bvh_clip
+
+SPECS = [
+    GaitSpec("idle", duration=1.0),
+    GaitSpec("walk", speed=1.4, duration=1.0),
+    GaitSpec("run_fwd", speed=4.0, duration=1.0, stride_length=2.6),
+    GaitSpec("run_bwd", speed=2.6, direction=180.0, duration=1.0, stride_length=2.0),
+]
+
+
+def _project(folder: Path, extra: str = "", clips: str = "  - path: clips/*.bvh\n") -> Path:
+    (folder / "clips").mkdir(parents=True, exist_ok=True)
+    for spec in SPECS:
+        write_bvh_clip(generate(spec), folder / "clips" / f"{spec.name}.bvh")
+    manifest = folder / "manifest.yaml"
+    manifest.write_text(f"schema_version: 1\nname: t\nclips:\n{clips}{extra}", encoding="utf-8")
+    return manifest
+
+
+def test_a_position_on_a_glob_of_several_clips_is_refused(tmp_path: Path) -> None:
+    """Every clip the glob matched was put at the hand position (a backward run at +4 m/s)."""
+    manifest = _project(
+        tmp_path, clips="  - path: clips/run_*.bvh\n    position: [0, 4]\n  - path: clips/walk.bvh\n"
+    )
+    from blendspace_pipeline.manifest.paths import resolve_clip_files
+
+    with pytest.raises(InputError) as error:
+        resolve_clip_files(load_manifest(manifest))
+    assert error.value.line == 4 and "a position belongs to one clip" in (error.value.hint or "")
+
+
+@pytest.mark.parametrize(
+    "tokens", ["{left: Left, right: Left}", "{left: '', right: Right}", "{left: ' ', right: ' '}"]
+)
+def test_mirror_tokens_that_swap_nothing_are_refused(tmp_path: Path, tokens: str) -> None:
+    """Equal or empty tokens pair every joint with itself: the "mirror" swapped nothing."""
+    manifest = _project(tmp_path, extra=f"skeleton: {{mirror: {tokens}}}\n")
+    with pytest.raises(InputError) as error:
+        load_manifest(manifest)
+    assert error.value.line is not None and "mirror" in str(error.value.render())
+
+
+def test_a_plugin_that_prints_leaves_the_json_output_whole(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "rules").mkdir()
+    (tmp_path / "rules" / "noisy.py").write_text(
+        "from blendspace_pipeline.api import Rule\nprint('loading noisy')\n\n\nclass Noisy(Rule):\n"
+        "    slug = 'studio-noisy'\n    code = 'ST300'\n    severity = 'warning'\n    summary = 'prints'\n\n"
+        "    def check(self, space):\n        print('debug: checking', len(space.samples))\n        return iter(())\n",
+        encoding="utf-8",
+    )
+    manifest = _project(tmp_path, extra="plugins: [rules/noisy.py]\n")
+    assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
+    out = capsys.readouterr()
+    json.loads(out.out)  # whole JSON
+    assert "loading noisy" in out.err and "debug: checking" in out.err
+
+
+def test_a_plugin_module_name_is_not_imported_from_the_working_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`python -m blendspace_pipeline` puts the working folder on `sys.path`: `plugins: [helper]`
+    ran ./helper.py from outside the project (a path plugin there is refused), and the
+    `blendspace` script did not find it: one command, two behaviours."""
+    outside = tmp_path / "ci"
+    project = outside / "proj"
+    project.mkdir(parents=True)
+    marker = tmp_path / "ran"
+    (outside / "helper_outside.py").write_text(f"open({str(marker)!r}, 'w').write('ran')\n", encoding="utf-8")
+    manifest = _project(project, extra="plugins: [helper_outside]\n")
+    monkeypatch.chdir(outside)
+    monkeypatch.syspath_prepend("")  # as `python -m` starts
+    assert main(["check", str(manifest)]) in (0, 1)
+    assert "plugin-error" in capsys.readouterr().out
+    assert not marker.exists()
+
+
+def test_a_document_with_a_position_that_is_not_finite_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """eval blended with a NaN sample and export wrote `Vector2(nan, 1)`."""
+    manifest = _project(tmp_path)
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--no-fix"]) in (0, 1)
+    doc = json.loads((out / "t.blendspace.json").read_text(encoding="utf-8"))
+    doc["samples"][0]["position"][0] = float("nan")
+    bad = tmp_path / "nan.json"
+    bad.write_text(json.dumps(doc), encoding="utf-8")  # Python writes NaN, as a hand edit might
+    capsys.readouterr()
+    assert main(["eval", str(bad), "--at", "x=0,y=1"]) == 2
+    assert "not a finite position" in capsys.readouterr().err
+    assert main(["export", str(bad), "--engine", "godot", "--out", os.fspath(tmp_path / "x.tres")]) == 2
