@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import textwrap
 import time
 from pathlib import Path
@@ -773,3 +774,35 @@ def test_a_clip_name_with_a_control_character_is_refused_at_its_line(tmp_path: P
         tmp_path, f'schema_version: 1\nname: t\nclips:\n  - path: clips/walk.bvh\n    name: "{name}"\n'
     )
     assert error.line == 5 and "control character" in error.message
+
+
+def test_a_control_character_in_the_yaml_is_named_at_its_line_and_column(tmp_path: Path) -> None:
+    """`printf "dir: 'C:\\build'"` writes a raw backspace: the error gave a character offset and a
+    literal `\\n` instead of `path:line:column`."""
+    error = load_error(
+        tmp_path, "schema_version: 1\nname: t\nclips:\n  - path: a.bvh\noutput: {dir: 'C:\x08uild'}\n"
+    )
+    assert (error.line, error.column) == (5, 18)
+    assert "U+0008" in error.message and "\\n" not in error.message
+
+
+def test_a_windows_drive_output_folder_is_refused_where_there_are_no_drives(tmp_path: Path) -> None:
+    """`output.dir: 'C:\\build'` made a folder named `C:` beside the manifest on Linux."""
+    if os.name == "nt":
+        pytest.skip("drives exist here")
+    error = load_error(
+        tmp_path, "schema_version: 1\nname: t\nclips:\n  - path: a.bvh\noutput: {dir: 'C:/build'}\n"
+    )
+    assert error.line == 5 and "Windows drive path" in error.message
+
+
+def test_a_home_output_folder_is_the_home_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`output.dir: ~/out` made a folder literally named `~`."""
+    from blendspace_pipeline.pipeline.own_outputs import output_folder
+
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    touch(tmp_path, "a.bvh")
+    loaded = load_manifest(
+        write(tmp_path, "schema_version: 1\nname: t\nclips:\n  - path: a.bvh\noutput: {dir: ~/out}\n")
+    )
+    assert output_folder(loaded, None) == tmp_path / "home" / "out"

@@ -291,9 +291,22 @@ def _parse(text: str, path: Path) -> CommentedMap:
         raise ManifestError(
             "the manifest nests too deeply to read", path=path, hint="flatten the nested brackets"
         ) from None
-    except YAMLError as error:  # reader errors (control characters) carry no mark
+    except YAMLError as error:  # reader errors (control characters) carry no mark, but a position
+        position = getattr(error, "position", None)
+        character = getattr(error, "character", None)
+        line = column = None
+        if isinstance(position, int) and 0 <= position <= len(text):
+            line = text.count("\n", 0, position) + 1
+            column = position - (text.rfind("\n", 0, position) + 1) + 1
+        if isinstance(character, str) and len(character) == 1:
+            character = ord(character)
+        what = f" U+{character:04X}" if isinstance(character, int) else ""
         raise ManifestError(
-            f"invalid YAML: {error}", path=path, hint="remove control characters from the file"
+            f"invalid YAML: the control character{what} is not allowed in YAML",
+            path=path,
+            line=line,
+            column=column,
+            hint="remove it; write a backslash as '\\\\' in double quotes or use single quotes",
         ) from None
     if tree is None:
         raise ManifestError(

@@ -9,6 +9,7 @@ the loader turns it into the error's ``hint:`` line.
 
 from __future__ import annotations
 
+import os
 import re
 from typing import Annotated, Any, Literal
 
@@ -365,7 +366,9 @@ def _all_clip_formats() -> list[ClipFormat]:
 class OutputSettings(_Model):
     """Where and what a build writes."""
 
-    dir: str = Field(default="build", description="Output folder, relative to the manifest.")
+    dir: str = Field(
+        default="build", description="Output folder, relative to the manifest (`~` is the home folder)."
+    )
     formats: list[OutputFormat] = Field(
         default_factory=_all_formats, min_length=1, description="Outputs to write (at least one)."
     )
@@ -375,6 +378,19 @@ class OutputSettings(_Model):
         description="Files written for each generated clip under clips/: usd (UsdSkel .usda), glb (for "
         "Godot, Unreal and Unity's glTFast) and bvh (only when every source is BVH).",
     )
+
+    @field_validator("dir")
+    @classmethod
+    def _a_folder_here(cls, value: str) -> str:
+        # `C:\\build` on Linux or macOS made a folder named `C:` beside the manifest.
+        if os.name != "nt" and re.match(r"^[A-Za-z]:[\\/]", value):
+            raise rule_error(
+                f"{value!r} is a Windows drive path, and this system has no drives",
+                "write a folder relative to the manifest (e.g. build), or an absolute path of this system",
+            )
+        if not value.strip():
+            raise rule_error("the output folder is empty", "write a folder, e.g. dir: build")
+        return value
 
 
 class BlendSettings(_Model):

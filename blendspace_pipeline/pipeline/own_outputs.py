@@ -27,7 +27,8 @@ def output_folder(loaded: LoadedManifest, out: Path | None) -> Path:
     """Where ``loaded``'s outputs go: ``out`` (--out) when given, else its `output.dir`."""
     if out is not None:
         return out
-    configured = Path(loaded.model.output.dir.replace("\\", "/"))
+    # `~` is the user's home folder (a folder literally named `~` is never what was meant).
+    configured = Path(loaded.model.output.dir.replace("\\", "/")).expanduser()
     return configured if configured.is_absolute() else loaded.directory / configured
 
 
