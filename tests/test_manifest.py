@@ -806,3 +806,15 @@ def test_a_home_output_folder_is_the_home_folder(tmp_path: Path, monkeypatch: py
         write(tmp_path, "schema_version: 1\nname: t\nclips:\n  - path: a.bvh\noutput: {dir: ~/out}\n")
     )
     assert output_folder(loaded, None) == tmp_path / "home" / "out"
+
+
+@pytest.mark.parametrize("name", ["''", "'a=b'", "'  '"])
+def test_a_layer_name_eval_cannot_reach_is_refused(tmp_path: Path, name: str) -> None:
+    """Layer names `''` and `a=b` built, but `eval --layer NAME=VALUE` could never give them."""
+    touch(tmp_path, "a.bvh", "s.bvh")
+    error = load_error(
+        tmp_path,
+        "schema_version: 1\nname: t\nclips:\n  - path: a.bvh\n"
+        f"layers:\n  - name: {name}\n    kind: style\n    clips: [s.bvh]\n",
+    )
+    assert error.line == 6 and "layer name" in error.message

@@ -326,10 +326,28 @@ class Mask(_Model):
     default: Weight = Field(default=1.0, description="Weight of joints not listed, 0..1.")
 
 
+def _layer_name(value: str) -> str:
+    """A layer name `eval --layer NAME=VALUE` can reach: not empty, no `=` and no control character."""
+    if not value.strip():
+        raise rule_error("the layer name is empty", "name the layer, e.g. name: lateral")
+    if "=" in value or _UNPRINTABLE.search(value):
+        raise rule_error(
+            f"the layer name {value!r} cannot be given to `eval --layer NAME=VALUE`",
+            "use letters, digits, spaces, '_' or '-', e.g. name: lateral",
+        )
+    return value
+
+
 class BetaLayer(_Model):
     """A second blend space with the same axes (BS2), blended with the main one by beta in [0, 1]."""
 
     name: str = Field(description="Layer name, used by `blendspace eval --layer NAME=VALUE`.")
+
+    @field_validator("name")
+    @classmethod
+    def _addressable(cls, value: str) -> str:
+        return _layer_name(value)
+
     kind: Literal["beta"] = Field(description="Layer kind: beta.")
     manifest: str = Field(description="Manifest of the second blend space, relative to this manifest.")
 
@@ -338,6 +356,12 @@ class StyleLayer(_Model):
     """A 1D style space over the speed axis, blended in by an intensity."""
 
     name: str = Field(description="Layer name, used by `blendspace eval --layer NAME=VALUE`.")
+
+    @field_validator("name")
+    @classmethod
+    def _addressable(cls, value: str) -> str:
+        return _layer_name(value)
+
     kind: Literal["style"] = Field(description="Layer kind: style.")
     clips: list[str | ClipEntry] = Field(
         min_length=1, description="Style clips: paths, globs or clip entries."
