@@ -87,3 +87,25 @@ def test_a_glob_does_not_read_a_blend_space_asset_as_a_take(
     assert main(["check", str(manifest)]) in (0, 1)
     out = capsys.readouterr()
     assert "UsdSkel" not in out.err + out.out
+
+
+def test_a_clip_a_build_placed_beside_the_sources_is_no_take_for_a_later_command(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`build --out .` places its mirror in ./clips/, beside the sources. A later `check` (or a
+    build to `output.dir`) looked for the placement record in `output.dir`, did not find it, and
+    read the mirror as a take: 14 samples and no generated clip, where the first build had 13 + 1."""
+    (tmp_path / "clips").mkdir()
+    for spec in SPECS[:7]:
+        write_bvh_clip(generate(spec), tmp_path / "clips" / f"{spec.name}.bvh")
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\noutput: {formats: [json], clip_formats: [bvh]}\n",
+        encoding="utf-8",
+    )
+    assert main(["build", str(manifest), "--out", str(tmp_path)]) in (0, 1)
+    first = capsys.readouterr().out
+    assert "1 generated (spin right)" in first and (tmp_path / "clips" / "spin_right.bvh").exists()
+    assert main(["build", str(manifest)]) in (0, 1)  # to output.dir (build/)
+    again = capsys.readouterr().out
+    assert "built 8 samples" in first and "built 8 samples" in again and "1 generated (spin right)" in again

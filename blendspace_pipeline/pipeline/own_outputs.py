@@ -74,18 +74,25 @@ def authored(
     globbed = {i for i, f in enumerate(files) if glob_entry[id(f.entry)]}
     if not globbed:
         return files
-    out_dir = output_folder(loaded, out)
-    generation = out_dir / GENERATIONS / safe_file_stem(loaded.model.name) / CURRENT
-    record = placed_record(generation)
-    if not record:
+    # The folders a build of this manifest may have placed these clips in: this command's output
+    # folder, and the one above each globbed clip's folder (`<out>/clips/`, a beta layer's
+    # `<out>/clips/<layer>/`): a `build --out .` places its clips beside the sources, and a later
+    # `check` (which looks in `output.dir`) had read its mirror as a take.
+    homes = {output_folder(loaded, out)}
+    for index in globbed:
+        folder = files[index].path.parent
+        homes |= {folder.parent, folder.parent.parent}
+    placed: dict[tuple[int, int], tuple[Path, Path, str, str]] = {}
+    for out_dir in sorted(homes, key=lambda p: p.as_posix()):
+        generation = out_dir / GENERATIONS / safe_file_stem(loaded.model.name) / CURRENT
+        for relative, digest in placed_record(generation).items():
+            try:
+                info = (out_dir / relative).stat()
+            except OSError:
+                continue
+            placed.setdefault((info.st_dev, info.st_ino), (out_dir, generation, relative, digest))
+    if not placed:
         return files
-    placed: dict[tuple[int, int], tuple[str, str]] = {}
-    for relative, digest in record.items():
-        try:
-            info = (out_dir / relative).stat()
-        except OSError:
-            continue
-        placed[(info.st_dev, info.st_ino)] = (relative, digest)
     kept = []
     for index, resolved in enumerate(files):
         try:
@@ -94,7 +101,7 @@ def authored(
             kept.append(resolved)
             continue
         mine = placed.get((info.st_dev, info.st_ino)) if index in globbed else None
-        if mine is not None and still_placed(out_dir / mine[0], generation, *mine):
+        if mine is not None and still_placed(mine[0] / mine[2], mine[1], mine[2], mine[3]):
             continue
         kept.append(resolved)
     return kept
