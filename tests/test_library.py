@@ -274,3 +274,33 @@ def test_suggest_leaves_out_library_clips_of_another_hierarchy(
     rows = [{k: v for k, v in row.items() if k != "layout"} for row in read_index(store)]
     write_index(store, rows)
     assert sorted(mirror_candidates()) == ["take_near", "take_reordered", "take_reparented"]
+
+
+def test_suggest_proposes_no_copy_of_the_projects_clips_and_its_patch_loads(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A library that holds copies of the project's takes had them proposed (same bytes), and the
+    patch named them by absolute path with no `name:`: the patched manifest then failed ("two
+    clips are named 'idle'"). A library take named like a project clip gets a `name:` now."""
+    _write(tmp_path / "project" / "clips", MANIFEST_CLIPS)
+    _write(tmp_path / "library", MANIFEST_CLIPS)  # the same bytes
+    # The mirror the project misses, under a name the project uses already.
+    (tmp_path / "library" / "extra").mkdir()
+    write_bvh_clip(generate(LIBRARY_CLIPS[0]), tmp_path / "library" / "extra" / "walk.bvh")
+    manifest = tmp_path / "project" / "manifest.yaml"
+    manifest.write_text("schema_version: 1\nname: gait\nclips:\n  - path: clips/*.bvh\n", encoding="utf-8")
+    store = str(tmp_path / "store")
+    assert main(["index", str(tmp_path / "library"), "--store", store, "--workers", "1"]) == 0
+    capsys.readouterr()
+    assert main(["suggest", str(manifest), "--library", store, "--format", "json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    proposed = {c["path"] for p in result["placeholders"] for c in p["candidates"]}
+    assert proposed == {str(tmp_path / "library" / "extra" / "walk.bvh")}
+    assert result["patch"] == '- path: "../library/extra/walk.bvh"\n  name: "walk_library"\n'
+    manifest.write_text(
+        manifest.read_text(encoding="utf-8")
+        + "".join(f"  {line}\n" for line in result["patch"].splitlines()),
+        encoding="utf-8",
+    )
+    names = [s.name for s in analyse(manifest).samples if not s.generated]
+    assert sorted(names) == sorted([*(s.name for s in MANIFEST_CLIPS), "walk_library"])

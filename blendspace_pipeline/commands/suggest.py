@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -47,10 +48,15 @@ def run(args: argparse.Namespace) -> int:
     # `layout`) are matched by joint names only.
     layouts = {layout_signature(m.joint_names, m.joint_parents) for m in authored}
     in_manifest = {str(Path(s.clip.source).resolve()) for s in space.samples}
+    # The same bytes elsewhere (the library holds a copy of the project's takes) are no new clip.
+    in_manifest_bytes = {_digest(Path(s.clip.source)) for s in space.samples if not s.generated}
     candidates = [
         r
         for r in rows
-        if r["skeleton"] in skeletons and r.get("layout") in (None, *layouts) and r["path"] not in in_manifest
+        if r["skeleton"] in skeletons
+        and r.get("layout") in (None, *layouts)
+        and r["path"] not in in_manifest
+        and r.get("digest") not in in_manifest_bytes
     ]
     axes = space.axes
     features = [f"feature.{axis.feature}" for axis in axes]
@@ -90,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
                 ],
             }
         )
-    patch = _patch(args.manifest, proposals)
+    patch = _patch(args.manifest, proposals, {sample.name for sample in space.samples})
     if args.format == "json":
         sys.stdout.write(
             json.dumps({"manifest": str(args.manifest), "placeholders": proposals, "patch": patch}, indent=2)
@@ -137,19 +143,39 @@ def _count(text: str) -> int:
     return value
 
 
-def _patch(manifest: Path, proposals: list[dict[str, Any]]) -> str:
-    """`clips:` entries adding the nearest candidate of each placeholder (each file once)."""
+def _digest(path: Path) -> str | None:
+    from blendspace_pipeline.pipeline.cache import content_digest
+
+    try:
+        return content_digest(path)
+    except OSError:
+        return None
+
+
+def _patch(manifest: Path, proposals: list[dict[str, Any]], taken: set[str]) -> str:
+    """`clips:` entries adding the nearest candidate of each placeholder (each file once), with
+    paths relative to the manifest (`../library/...` too: an absolute path ties the manifest to
+    one machine), and a `name:` where the clip's own name is one the manifest has already (two
+    clips of one name are refused)."""
     chosen: dict[str, str] = {}
     for proposal in proposals:
         if proposal["candidates"] and proposal["candidates"][0]["fills"]:
             best = proposal["candidates"][0]
             chosen.setdefault(best["path"], best["name"])
     base = manifest.resolve().parent
+    names = set(taken)
     entries = []
-    for path in chosen:
+    for path, name in chosen.items():
         try:
-            shown = Path(path).relative_to(base).as_posix()
-        except ValueError:
+            shown = Path(os.path.relpath(path, base)).as_posix()
+        except ValueError:  # another drive (Windows)
             shown = Path(path).as_posix()
         entries.append(f"- path: {json.dumps(shown)}")
+        if name in names:
+            number = 1
+            while (unique := f"{name}_library{number if number > 1 else ''}") in names:
+                number += 1
+            entries.append(f"  name: {json.dumps(unique)}")
+            name = unique
+        names.add(name)
     return "\n".join(entries) + ("\n" if entries else "")
