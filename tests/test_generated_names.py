@@ -109,3 +109,28 @@ def test_a_clip_a_build_placed_beside_the_sources_is_no_take_for_a_later_command
     assert main(["build", str(manifest)]) in (0, 1)  # to output.dir (build/)
     again = capsys.readouterr().out
     assert "built 8 samples" in first and "built 8 samples" in again and "1 generated (spin right)" in again
+
+
+def test_bvh_asked_by_name_is_written_for_clips_made_from_other_formats(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`clip_formats: [bvh]` on USD sources wrote the USD alone, with no word: the BVH is written
+    too now (in its own layout), and reads back as the clip the fix made."""
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    (tmp_path / "clips").mkdir()
+    for spec in SPECS[:7]:
+        write_usd_clip(
+            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    manifest = tmp_path / "manifest.yaml"
+    manifest.write_text(
+        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.usda\noutput: {formats: [json], clip_formats: [bvh]}\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out)]) in (0, 1)
+    capsys.readouterr()
+    [clip] = read_clips(out / "clips" / "spin_right.bvh")
+    assert measure(clip, RigSettings()).features["turn_rate"] == pytest.approx(-90.0, abs=1.0)
+    assert (out / "clips" / "spin_right.usda").exists()  # the sample's source, readable beside its set

@@ -33,8 +33,9 @@ def clip_formats(space: BlendSpace) -> list[str]:
 def source_suffix(space: BlendSpace) -> str:
     """The file a generated sample's ``source`` names: the first written of USD, GLB, BVH.
 
-    BVH is written only for BVH sources; a manifest asking for BVH alone on other sources still
-    gets the USD, so a generated sample always has a file.
+    BVH is written in the sources' layout for BVH sources (in its own for others, when
+    `clip_formats` names it); a manifest asking for BVH alone on other sources still gets the USD,
+    so a generated sample names a file its set's readers share.
     """
     formats = clip_formats(space)
     if formats == ["bvh"] and not _all_bvh(space):
@@ -96,7 +97,10 @@ def write_generated_clip(
         written.append(folder / f"{stem}.glb")
         write_gltf_clip(clip, written[-1], meters_per_unit=units, up_axis=up, provenance=record)
     template = bvh_template(space, generated) if "bvh" in formats else None
-    if template is not None:
+    # BVH beside other sources only when the manifest asks for it by name (its default lists every
+    # format): `clip_formats: [bvh]` on USD sources had written USD alone, without a word.
+    asked = "clip_formats" in space.manifest.model.output.model_fields_set
+    if template is not None or ("bvh" in formats and asked):
         from blendspace_pipeline.writers.bvh import LayoutCannotHold, write_bvh_clip
 
         written.append(folder / f"{stem}.bvh")
