@@ -640,3 +640,19 @@ def test_contributing_setup_and_checks_match_readme_and_ci() -> None:
             build_parser().parse_args(command.split()[1:])
         else:
             assert command in ci, f"{command!r} is not what CI runs"
+
+
+@pytest.mark.parametrize(
+    ("slug", "code"), [("", ""), ("Bad Slug!", "ST103"), ("studio_rule", "ST104"), ("studio-ok", "ST 1")]
+)
+def test_a_rule_a_manifest_cannot_name_is_a_plugin_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], slug: str, code: str
+) -> None:
+    """Slugs and codes are what `select`, `ignore` and per-clip `ignore:` name: an empty one was
+    a blank row in `blendspace rules`, and `Bad Slug!` loaded and could never be named."""
+    (tmp_path / "rules").mkdir()
+    (tmp_path / "rules" / "odd.py").write_text(rule_module(slug, code), encoding="utf-8")
+    manifest = write_project(tmp_path, "plugins: [rules/odd.py]\n")
+    _, found = check(manifest, capsys)
+    [problem] = by_rule(found, "plugin-error")
+    assert "a slug is lower-case words joined by '-'" in problem["message"]

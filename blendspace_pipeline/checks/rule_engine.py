@@ -29,6 +29,7 @@ import math
 import numbers
 import os
 import pkgutil
+import re
 import sys
 import traceback
 from collections.abc import Iterable
@@ -126,6 +127,10 @@ class LoadedRules:
         return {rule.code: slug for slug, rule in self.rules.items()}
 
 
+_SLUG = re.compile(r"[a-z0-9]+(?:-[a-z0-9]+)*")
+_CODE = re.compile(r"[A-Za-z0-9]+")
+
+
 def rule_problem(rule: type[Rule]) -> str | None:
     """Why the loader refuses ``rule`` (as "is incomplete ...", "has bad Options ..."), or None."""
     missing = [a for a in ("slug", "code", "severity", "summary") if not hasattr(rule, a)]
@@ -136,6 +141,13 @@ def rule_problem(rule: type[Rule]) -> str | None:
         or rule.severity not in ("error", "warning", "info")
     ):
         return "is incomplete (needs slug, code, severity error|warning|info, summary)"
+    if not _SLUG.fullmatch(rule.slug) or not _CODE.fullmatch(rule.code):
+        # A manifest names rules by slug or code (`select`, `ignore`, `ignore:` per clip): an
+        # empty one was a blank row in `blendspace rules`, and `Bad Slug!` could not be named.
+        return (
+            f"has slug {rule.slug!r} and code {rule.code!r}: a slug is lower-case words joined by '-' "
+            "(e.g. studio-min-cycle-length), a code letters and digits (e.g. ST001)"
+        )
     problem = _options_problem(rule.Options)
     return None if problem is None else f"has bad Options: {problem}"
 
