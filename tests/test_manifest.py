@@ -818,3 +818,18 @@ def test_a_layer_name_eval_cannot_reach_is_refused(tmp_path: Path, name: str) ->
         f"layers:\n  - name: {name}\n    kind: style\n    clips: [s.bvh]\n",
     )
     assert error.line == 6 and "layer name" in error.message
+
+
+@pytest.mark.parametrize(
+    "key", ["position: [0, 1]", "expect: {speed: 1}", "ignore: [{rule: not-a-rule, reason: x}]"]
+)
+def test_a_style_clip_entry_refuses_the_keys_that_do_nothing_there(tmp_path: Path, key: str) -> None:
+    """A style clip sits at its measured speed: `position:`, `expect:` and `ignore:` did nothing on
+    its entry, with no word (even an unknown rule in `ignore:`)."""
+    touch(tmp_path, "a.bvh", "s.bvh")
+    error = load_error(
+        tmp_path,
+        "schema_version: 1\nname: t\nclips:\n  - path: a.bvh\n"
+        f"layers:\n  - name: limp\n    kind: style\n    clips:\n      - path: s.bvh\n        {key}\n",
+    )
+    assert "a style clip takes no" in error.message and error.line is not None

@@ -342,31 +342,44 @@ class BetaLayer(_Model):
     """A second blend space with the same axes (BS2), blended with the main one by beta in [0, 1]."""
 
     name: str = Field(description="Layer name, used by `blendspace eval --layer NAME=VALUE`.")
+    kind: Literal["beta"] = Field(description="Layer kind: beta.")
+    manifest: str = Field(description="Manifest of the second blend space, relative to this manifest.")
 
     @field_validator("name")
     @classmethod
     def _addressable(cls, value: str) -> str:
         return _layer_name(value)
-
-    kind: Literal["beta"] = Field(description="Layer kind: beta.")
-    manifest: str = Field(description="Manifest of the second blend space, relative to this manifest.")
 
 
 class StyleLayer(_Model):
     """A 1D style space over the speed axis, blended in by an intensity."""
 
     name: str = Field(description="Layer name, used by `blendspace eval --layer NAME=VALUE`.")
+    kind: Literal["style"] = Field(description="Layer kind: style.")
+    clips: list[str | ClipEntry] = Field(
+        min_length=1, description="Style clips: paths, globs or clip entries."
+    )
+    mask: Mask | None = Field(default=None, description="Optional per-joint weights of the style.")
 
     @field_validator("name")
     @classmethod
     def _addressable(cls, value: str) -> str:
         return _layer_name(value)
 
-    kind: Literal["style"] = Field(description="Layer kind: style.")
-    clips: list[str | ClipEntry] = Field(
-        min_length=1, description="Style clips: paths, globs or clip entries."
-    )
-    mask: Mask | None = Field(default=None, description="Optional per-joint weights of the style.")
+    @field_validator("clips")
+    @classmethod
+    def _style_entry_keys(cls, value: list[str | ClipEntry]) -> list[str | ClipEntry]:
+        # A style clip sits at its measured speed on the style axis, checked by the main space's
+        # rules: these keys did nothing here, and said nothing (even `ignore: [{rule: not-a-rule}]`).
+        for entry in value:
+            if isinstance(entry, ClipEntry):
+                unused = [key for key in ("position", "expect", "ignore") if key in entry.model_fields_set]
+                if unused:
+                    raise rule_error(
+                        f"a style clip takes no `{unused[0]}:` (its place is its measured speed)",
+                        f"drop `{unused[0]}:` from the style layer's clip entry",
+                    )
+        return value
 
 
 Layer = Annotated[BetaLayer | StyleLayer, Field(discriminator="kind")]
