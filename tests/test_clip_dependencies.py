@@ -69,7 +69,9 @@ def test_editing_the_file_a_clip_is_read_with_re_measures_it(
         )
     make = _usd_with_a_layer if kind == "usd" else _gltf_with_a_buffer
     other = make(tmp_path, 1.4)
-    assert file_dependencies(tmp_path / "clips" / f"walk.{'usda' if kind == 'usd' else 'gltf'}") == [other]
+    assert file_dependencies(
+        tmp_path / "clips" / f"walk.{'usda' if kind == 'usd' else 'gltf'}", tmp_path
+    ) == [other]
     manifest = tmp_path / "manifest.yaml"
     manifest.write_text(
         "schema_version: 1\nname: t\nclips:\n  - path: clips/*\noutput: {formats: [json]}\n", encoding="utf-8"

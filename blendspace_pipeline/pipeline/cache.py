@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 import tempfile
 import time
 from dataclasses import fields, is_dataclass
@@ -86,6 +87,9 @@ def dependency_state(paths: list[Path]) -> list[list[str]]:
             info = path.stat()
         except OSError:
             state.append([str(path), "", ""])
+            continue
+        if not stat.S_ISREG(info.st_mode):  # a buffer at /dev/zero or a FIFO: never read (the
+            state.append([str(path), stat_key(path, info), "not a file"])  # reader says why)
             continue
         state.append([str(path), stat_key(path, info), content_digest(path)])
     return state

@@ -13,17 +13,24 @@ import os
 from pathlib import Path
 from urllib.parse import unquote
 
+from blendspace_pipeline.errors import ClipReadError
+from blendspace_pipeline.readers.limits import allowed_roots, check_regular, confined, read_regular_file
+
 USD_SUFFIXES = frozenset({".usd", ".usda", ".usdc"})  # a .usdz packs its layers in its own bytes
 
 
-def file_dependencies(path: Path) -> list[Path]:
+def file_dependencies(path: Path, project: Path | None = None) -> list[Path]:
     """Absolute paths of the files ``path`` is read with besides itself (sorted; a file named but
-    missing is listed too: creating it changes the clip); [] for formats that keep one file."""
+    missing is listed too: creating it changes the clip); [] for formats that keep one file.
+    Only files the readers may open count (inside the clip's folder or ``project``, the
+    manifest's: `limits.confined`); a reference elsewhere is reported when the clip is read."""
     suffix = path.suffix.lower()
     if suffix == ".gltf":
-        found = _gltf_buffers(path)
+        found = _gltf_buffers(path, project)
     elif suffix in USD_SUFFIXES:
-        found = _usd_layers(path)
+        from blendspace_pipeline.readers.usd import composed_layers
+
+        found = composed_layers(path, project)
     else:
         return []
     own = os.path.normcase(os.path.abspath(path))
@@ -32,31 +39,22 @@ def file_dependencies(path: Path) -> list[Path]:
     return sorted(unique.values(), key=lambda p: p.as_posix())
 
 
-def _gltf_buffers(path: Path) -> list[Path]:
+def _gltf_buffers(path: Path, project: Path | None) -> list[Path]:
     """The external buffers (`buffers[].uri` that is no `data:` URI), relative to the file."""
     try:
-        document = json.loads(path.read_bytes())
+        check_regular(path, what="glTF file")
+        document = json.loads(read_regular_file(path, what="glTF file"))
         buffers = document.get("buffers") or []
-    except (OSError, ValueError, AttributeError):
+    except (ClipReadError, OSError, ValueError, AttributeError, RecursionError):
         return []  # the reader reports what is wrong with the file
-    uris = [b.get("uri") for b in buffers if isinstance(b, dict)]
-    return [
-        path.parent / unquote(uri)
-        for uri in uris
-        if isinstance(uri, str) and uri and not uri.startswith("data:")
-    ]
-
-
-def _usd_layers(path: Path) -> list[Path]:
-    """Every layer and asset the stage composes from ``path`` (sublayers, references, payloads,
-    recursively: `UsdUtils.ComputeAllDependencies`), and the ones it cannot find."""
-    try:
-        from pxr import Sdf, UsdUtils
-
-        layers, assets, unresolved = UsdUtils.ComputeAllDependencies(Sdf.AssetPath(str(path)))
-    except Exception:  # an unreadable stage: the reader reports it
-        return []
-    found = [Path(layer.realPath) for layer in layers if layer.realPath]
-    found += [Path(asset) for asset in assets if asset]
-    found += [path.parent / text for text in unresolved if text and "://" not in text]
+    roots = allowed_roots(path, project)
+    found = []
+    for buffer in buffers:
+        uri = buffer.get("uri") if isinstance(buffer, dict) else None
+        if not isinstance(uri, str) or not uri or uri.startswith("data:"):
+            continue
+        try:
+            found.append(confined(path, unquote(uri), roots, what="glTF buffer"))
+        except (ClipReadError, OSError, ValueError):
+            continue
     return found

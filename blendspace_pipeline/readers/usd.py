@@ -28,7 +28,14 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton, UpAxis
 from blendspace_pipeline.motion.quaternions import FloatArray
-from blendspace_pipeline.readers.limits import check_regular, confined, current_roots, read_regular_file
+from blendspace_pipeline.readers.limits import (
+    REFERENCE_ROOTS,
+    allowed_roots,
+    check_regular,
+    confined,
+    current_roots,
+    read_regular_file,
+)
 from blendspace_pipeline.writers.usd_clip import FLAT_SKELETON_KEY
 
 SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -82,11 +89,13 @@ def _check_text(path: Path) -> None:
         ) from None
 
 
-def _check_dependencies(path: Path) -> None:
+def _check_dependencies(path: Path) -> list[Path]:
     """Every sublayer, reference and payload resolves inside the project and is a regular file,
-    checked layer by layer *before* USD composes (and so reads) any of them."""
+    checked layer by layer *before* USD composes (and so reads) any of them. Returns the layer
+    files the clip composes besides its own (a `.usdz` package's inner layers are its bytes)."""
     roots = current_roots(path)
     seen: set[str] = set()
+    found: list[Path] = []
     pending = [str(path)]
     while pending:
         current = pending.pop()
@@ -112,8 +121,23 @@ def _check_dependencies(path: Path) -> None:
             outer = resolved.split("[", 1)[0]  # a file inside a .usdz package: check the package
             target = confined(path, outer, roots, what=f"USD layer reference {asset!r}")
             check_regular(target, what=f"USD layer {asset!r}")
+            found.append(target)
             if "[" not in resolved:
                 pending.append(str(target))
+    return found
+
+
+def composed_layers(path: Path, project: Path | None = None) -> list[Path]:
+    """The layer files ``path`` composes (`_check_dependencies`, with the roots `read_clips`
+    allows); [] when one of them is not allowed (reading the clip says why)."""
+    token = REFERENCE_ROOTS.set(allowed_roots(path, project))
+    try:
+        check_regular(path, what="USD file")
+        return _check_dependencies(path)
+    except (ClipReadError, Tf.ErrorException):  # a broken layer: reading the clip says where
+        return []
+    finally:
+        REFERENCE_ROOTS.reset(token)
 
 
 def _usd_error(path: Path, error: Tf.ErrorException) -> ClipReadError:
