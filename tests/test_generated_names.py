@@ -29,6 +29,26 @@ SPECS = [
 ]
 
 
+def _project(folder: Path, specs: list[GaitSpec], suffix: str, clips: str, output: str = "") -> Path:
+    """``specs`` written under folder/clips as BVH or USD (``suffix``) and a manifest globbing
+    ``clips``, with ``output`` settings; returns the manifest."""
+    from blendspace_pipeline.writers.usd_clip import write_usd_clip
+
+    (folder / "clips").mkdir()
+    for spec in specs:
+        path = folder / "clips" / f"{spec.name}{suffix}"
+        if suffix == ".bvh":
+            write_bvh_clip(generate(spec), path)
+        else:
+            write_usd_clip(generate(spec), path, meters_per_unit=1.0, up_axis="y")
+    manifest = folder / "manifest.yaml"
+    extra = f"output: {{{output}}}\n" if output else ""
+    manifest.write_text(
+        f"schema_version: 1\nname: loco\nclips:\n  - path: '{clips}'\n{extra}", encoding="utf-8"
+    )
+    return manifest
+
+
 def test_unique_stems_keep_plain_stems_and_part_only_the_names_that_clash() -> None:
     names = ("spin left", "spin_left", "Run", "run")
     stems = unique_stems(["walk", *names, "jog"])
@@ -45,14 +65,7 @@ def test_generated_clips_whose_names_share_a_file_name_each_get_their_own(
 ) -> None:
     """Two mirrors, `spin right` (-90 deg/s) and `spin_right` (-45 deg/s), were both written to
     clips/spin_right.*: the second overwrote the first, and one sample's clip was the other's."""
-    (tmp_path / "clips").mkdir()
-    for spec in SPECS:
-        write_bvh_clip(generate(spec), tmp_path / "clips" / f"{spec.name}.bvh")
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\noutput: {formats: [json], clip_formats: [bvh]}\n",
-        encoding="utf-8",
-    )
+    manifest = _project(tmp_path, SPECS, ".bvh", "clips/*.bvh", "formats: [json], clip_formats: [bvh]")
     out = tmp_path / "out"
     assert main(["build", str(manifest), "--out", str(out), "--format", "json"]) in (0, 1)
     capsys.readouterr()
@@ -72,15 +85,7 @@ def test_a_glob_does_not_read_a_blend_space_asset_as_a_take(
 ) -> None:
     """`build --out .` puts `N.blendspace.usda` beside the manifest; a later `check` (which looks
     for outputs in `output.dir`) globbed `**/*.usda` onto it and failed: "no UsdSkel Skeleton"."""
-    from blendspace_pipeline.writers.usd_clip import write_usd_clip
-
-    (tmp_path / "clips").mkdir()
-    for spec in SPECS[:6]:
-        write_usd_clip(
-            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
-        )
-    manifest = tmp_path / "glob.yaml"
-    manifest.write_text("schema_version: 1\nname: loco\nclips:\n  - path: '**/*.usda'\n", encoding="utf-8")
+    manifest = _project(tmp_path, SPECS[:6], ".usda", "**/*.usda")
     assert main(["build", str(manifest), "--out", str(tmp_path), "--no-fix"]) in (0, 1)
     assert (tmp_path / "loco.blendspace.usda").exists()
     capsys.readouterr()
@@ -95,14 +100,7 @@ def test_a_clip_a_build_placed_beside_the_sources_is_no_take_for_a_later_command
     """`build --out .` places its mirror in ./clips/, beside the sources. A later `check` (or a
     build to `output.dir`) looked for the placement record in `output.dir`, did not find it, and
     read the mirror as a take: 14 samples and no generated clip, where the first build had 13 + 1."""
-    (tmp_path / "clips").mkdir()
-    for spec in SPECS[:7]:
-        write_bvh_clip(generate(spec), tmp_path / "clips" / f"{spec.name}.bvh")
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.bvh\noutput: {formats: [json], clip_formats: [bvh]}\n",
-        encoding="utf-8",
-    )
+    manifest = _project(tmp_path, SPECS[:7], ".bvh", "clips/*.bvh", "formats: [json], clip_formats: [bvh]")
     assert main(["build", str(manifest), "--out", str(tmp_path)]) in (0, 1)
     first = capsys.readouterr().out
     assert "1 generated (spin right)" in first and (tmp_path / "clips" / "spin_right.bvh").exists()
@@ -116,18 +114,7 @@ def test_bvh_asked_by_name_is_written_for_clips_made_from_other_formats(
 ) -> None:
     """`clip_formats: [bvh]` on USD sources wrote the USD alone, with no word: the BVH is written
     too now (in its own layout), and reads back as the clip the fix made."""
-    from blendspace_pipeline.writers.usd_clip import write_usd_clip
-
-    (tmp_path / "clips").mkdir()
-    for spec in SPECS[:7]:
-        write_usd_clip(
-            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
-        )
-    manifest = tmp_path / "manifest.yaml"
-    manifest.write_text(
-        "schema_version: 1\nname: loco\nclips:\n  - path: clips/*.usda\noutput: {formats: [json], clip_formats: [bvh]}\n",
-        encoding="utf-8",
-    )
+    manifest = _project(tmp_path, SPECS[:7], ".usda", "clips/*.usda", "formats: [json], clip_formats: [bvh]")
     out = tmp_path / "out"
     assert main(["build", str(manifest), "--out", str(out)]) in (0, 1)
     capsys.readouterr()
