@@ -342,7 +342,9 @@ class Rule:
             code=self.code,
             severity=self.effective_severity,
             message=message,
-            clips=tuple(clips),
+            # One name given as a string is that clip, not its letters ("clips not in the space:
+            # _, a, d, f, k" for `clips="walk_fwd"`).
+            clips=(clips,) if isinstance(clips, str) else tuple(clips),
             position=(float(position[0]), float(position[1])) if position is not None else None,
             fix=fix,
             hint=hint,

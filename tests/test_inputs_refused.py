@@ -106,3 +106,35 @@ def test_a_document_with_a_position_that_is_not_finite_is_refused(
     assert main(["eval", str(bad), "--at", "x=0,y=1"]) == 2
     assert "not a finite position" in capsys.readouterr().err
     assert main(["export", str(bad), "--engine", "godot", "--out", os.fspath(tmp_path / "x.tres")]) == 2
+
+
+def test_a_beta_layer_pointing_at_a_clip_says_so(tmp_path: Path) -> None:
+    """`manifest: clips/walk.bvh` reported "invalid YAML: mapping values are not allowed here" at
+    the clip's own line, not that a clip is no manifest."""
+    manifest = _project(
+        tmp_path, extra="layers:\n  - {name: lateral, kind: beta, manifest: clips/walk.bvh}\n"
+    )
+    from blendspace_pipeline.pipeline.analysis import analyse
+
+    with pytest.raises(InputError) as error:
+        analyse(manifest)
+    assert "is a clip file, not a manifest" in error.value.message and error.value.line == 6
+
+
+def test_a_rule_reporting_one_clip_name_as_a_string_names_that_clip(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`self.report(..., clips="walk")` was read letter by letter ("clips not in the space: a, k,
+    l, w", a rule-crashed finding)."""
+    (tmp_path / "rules").mkdir()
+    (tmp_path / "rules" / "one.py").write_text(
+        "from blendspace_pipeline.api import Rule\n\n\nclass One(Rule):\n"
+        "    slug = 'studio-one'\n    code = 'ST301'\n    severity = 'warning'\n    summary = 'names walk'\n\n"
+        "    def check(self, space):\n        yield self.report('walk is named', clips='walk')\n",
+        encoding="utf-8",
+    )
+    manifest = _project(tmp_path, extra="plugins: [rules/one.py]\n")
+    assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
+    found = json.loads(capsys.readouterr().out)
+    [finding] = [d for d in found["diagnostics"] if d["rule"] == "studio-one"]
+    assert finding["clips"] == ["walk"]

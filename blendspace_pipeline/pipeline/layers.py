@@ -18,6 +18,7 @@ from blendspace_pipeline.manifest.models import BetaLayer, ClipEntry, StyleLayer
 from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.pipeline.measure_stage import measure_files
 from blendspace_pipeline.pipeline.progress import Progress
+from blendspace_pipeline.readers import supported_suffixes
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace, Layer, StyleSpace, style_axis
 
 # Analyses a beta layer's own manifest (without layers of its own): the pipeline passes its
@@ -70,6 +71,11 @@ def _beta(space: BlendSpace, layer: BetaLayer, index: int, analyse_beta: Analyse
     if not path.is_file():
         raise fail(
             f"manifest {layer.manifest} not found (looked at {path})", "the path is relative to this manifest"
+        )
+    if path.suffix.lower() in supported_suffixes():  # a clip named here read as "invalid YAML"
+        raise fail(
+            f"{layer.manifest} is a clip file, not a manifest (a beta layer's manifest lists its clips)",
+            "point `manifest:` at a second manifest (e.g. lateral.yaml) that lists the layer's clips",
         )
     if path.resolve() == loaded.path.resolve():
         raise fail(
