@@ -138,3 +138,27 @@ def test_a_rule_reporting_one_clip_name_as_a_string_names_that_clip(
     found = json.loads(capsys.readouterr().out)
     [finding] = [d for d in found["diagnostics"] if d["rule"] == "studio-one"]
     assert finding["clips"] == ["walk"]
+
+
+def test_mirror_tokens_that_pair_no_joints_skip_the_mirror_and_say_why(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`skeleton.mirror: {left: Foo, right: Bar}` matched no joint, and the mirror was made by the
+    automatic pairing instead, with no word: the tokens the manifest states are never replaced."""
+    manifest = _project(
+        tmp_path, extra="skeleton: {mirror: {left: Foo, right: Bar}}\noutput: {formats: [json]}\n"
+    )
+    write_bvh_clip(
+        generate(GaitSpec("walk_left", speed=1.4, turn_rate=60.0, duration=1.0)),
+        tmp_path / "clips" / "walk_left.bvh",
+    )
+    out = tmp_path / "out"
+    assert main(["build", str(manifest), "--out", str(out), "--format", "json"]) in (0, 1)
+    capsys.readouterr()
+    doc = json.loads((out / "t.blendspace.json").read_text(encoding="utf-8"))
+    assert not [s for s in doc["samples"] if s["fix"] == "missing-opposite"]
+    skipped = [d for d in doc["diagnostics"] if d["rule"] == "fix-skipped" and "walk_left" in d["clips"]]
+    assert (
+        skipped
+        and "skeleton.mirror {left: Foo, right: Bar} pairs no joints of walk_left" in skipped[0]["message"]
+    )

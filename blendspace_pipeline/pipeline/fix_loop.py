@@ -345,9 +345,25 @@ class _Fixer:
     def _mirror(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
         data = diagnostic.fix_data or {}
         source = str(data["source"])
+        pairs = self._pairs(source)
+        if pairs == {}:  # tokens set, and no joint pair carries them: never a silent guess instead
+            tokens = entry_settings(self.model.skeleton, self._entry(source)).mirror
+            shown = (
+                f"{{left: {tokens.left}, right: {tokens.right}}}"
+                if isinstance(tokens, MirrorTokens)
+                else tokens
+            )
+            self._skip(
+                diagnostic,
+                f"skeleton.mirror {shown} pairs no joints of {source}: no joint holds one token "
+                "where another joint holds the other",
+                hint="set skeleton.mirror to the rig's side tokens (e.g. {left: Left, right: Right}, "
+                "{left: _l, right: _r}), or remove it to pair the joints by their names and shape",
+            )
+            return False
         name = self._unique(mirrored_name(source))
         settings = self._read_as(source)
-        clip = mirror_clip(self._clip(source), settings=settings, name=name, pairs=self._pairs(source))
+        clip = mirror_clip(self._clip(source), settings=settings, name=name, pairs=pairs)
         return self._add(clip, "missing-opposite", (source,), f"mirror of {source}", (1.0,), settings)
 
     def _axis_clip(self, space: BlendSpace, diagnostic: Diagnostic) -> bool:
