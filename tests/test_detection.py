@@ -570,3 +570,25 @@ def test_a_small_character_in_centimetres_is_not_read_silently_as_an_adult_in_in
     stated = measure(small, RigSettings(units="cm"))
     assert stated.features["speed"] == pytest.approx(1.4 * scale, rel=0.02)
     assert not [g for g in stated.guesses if g.what == "units"]
+
+
+@pytest.mark.parametrize("scale", [1.5, 3.0])
+def test_a_giant_in_metres_is_advised_metres_first(scale: float) -> None:
+    """An ogre's legs (1.2-2.5 m) fit no adult in any unit: the clip is read at the unit that makes
+    them an adult's (a guess, as before), and the advice now names metres first, which makes them
+    the giant's they are (it named `units: 0.6667` alone)."""
+    from blendspace_pipeline.motion.clip import Skeleton
+
+    base = generate(GaitSpec("w", speed=1.4, duration=2.0))
+    sk = base.skeleton
+    ogre = Clip(
+        "ogre",
+        base.source,
+        Skeleton(sk.names, sk.parents, sk.rest_translations * scale, sk.rest_rotations),
+        base.rotations,
+        base.translations * scale,
+        base.fps,
+    )
+    [guess] = [g for g in measure(ogre, RigSettings()).guesses if g.what == "units"]
+    assert guess.override.startswith("skeleton: {units: m} (legs")
+    assert measure(ogre, RigSettings(units="m")).features["speed"] == pytest.approx(1.4 * scale, rel=0.02)

@@ -1181,6 +1181,19 @@ def _unit_from_length(
         f"the {what} is {length:.4g} units: no unit of m, cm, mm, in or CMU makes it "
         f"{low:g}-{high:g} m; assumed {reference:g} m"
     )
+    # A giant's or a child's legs in a conventional unit are likelier than an unconventional unit:
+    # the advice names that unit first (a 2.5 m ogre in metres was told `units: 0.6667`).
+    sized = [
+        (name, length * metres)
+        for name, metres in UNIT_METERS.items()
+        if _NO_ADULT_LEG[0] <= length * metres <= _NO_ADULT_LEG[1] and what.startswith("leg")
+    ]
+    if sized:
+        name, metres = sized[0]
+        override = (
+            f"skeleton: {{units: {name}}} (legs {metres:.2f} m long) or {{units: {scale:.4g}}} (an adult's)"
+        )
+
     return (
         scale,
         f"guessed from the {what}",
