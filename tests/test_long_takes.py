@@ -62,3 +62,22 @@ def test_range_auto_takes_the_longest_steady_part() -> None:
     for parts in ([LONG_WALK, RUN], [RUN, LONG_WALK]):
         m = measure(joined("take", parts), RigSettings(), "auto")
         assert m.features["speed"] == pytest.approx(1.4, rel=0.03)
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("spread", [3.0, 5.0])
+def test_range_auto_keeps_a_walk_whose_heading_wanders(spread: float, seed: int) -> None:
+    """An actor's straight walk turns a few degrees one way or the other every cycle. A fixed
+    5-degree band cut such a 16 s walk to the 8 s whose cycles curved alike, and read a turn of
+    the wrong sign; the band follows the take's own cycle-to-cycle noise."""
+    import numpy as np
+
+    per_cycle = np.random.default_rng(seed).normal(0.0, spread, 16)  # degrees each cycle turns
+    parts = [
+        GaitSpec("walk", speed=1.4, stride_length=1.4, duration=1.0, fps=60.0, turn_rate=float(t))
+        for t in per_cycle
+    ]
+    m = measure(joined("walk", parts), RigSettings(), "auto")
+    assert m.range_used is not None and m.range_used[1] - m.range_used[0] >= 11.0
+    assert m.features["speed"] == pytest.approx(1.4, rel=0.02)
+    assert m.features["turn_rate"] == pytest.approx(float(per_cycle.mean()), abs=1.5)

@@ -643,16 +643,27 @@ def test_contributing_setup_and_checks_match_readme_and_ci() -> None:
 
 
 @pytest.mark.parametrize(
-    ("slug", "code"), [("", ""), ("Bad Slug!", "ST103"), ("studio_rule", "ST104"), ("studio-ok", "ST 1")]
+    ("slug", "code"), [("", ""), ("studio-ok", " "), ("studio\\nrule", "ST104"), (" padded", "ST105")]
 )
 def test_a_rule_a_manifest_cannot_name_is_a_plugin_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], slug: str, code: str
 ) -> None:
     """Slugs and codes are what `select`, `ignore` and per-clip `ignore:` name: an empty one was
-    a blank row in `blendspace rules`, and `Bad Slug!` loaded and could never be named."""
+    a blank row in `blendspace rules`."""
     (tmp_path / "rules").mkdir()
     (tmp_path / "rules" / "odd.py").write_text(rule_module(slug, code), encoding="utf-8")
     manifest = write_project(tmp_path, "plugins: [rules/odd.py]\n")
     _, found = check(manifest, capsys)
     [problem] = by_rule(found, "plugin-error")
-    assert "a slug is lower-case words joined by '-'" in problem["message"]
+    assert "both must be non-empty text without control characters" in problem["message"]
+
+
+def test_existing_studio_slugs_and_codes_still_load(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`studio_min_cycle` / `ST-001` are written in manifests as they are: they load."""
+    (tmp_path / "rules").mkdir()
+    (tmp_path / "rules" / "ok.py").write_text(rule_module("studio_min_cycle", "ST-001"), encoding="utf-8")
+    manifest = write_project(tmp_path, "plugins: [rules/ok.py]\n")
+    _, found = check(manifest, capsys)
+    assert not by_rule(found, "plugin-error") and by_rule(found, "studio_min_cycle")

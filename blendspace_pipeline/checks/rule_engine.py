@@ -127,8 +127,7 @@ class LoadedRules:
         return {rule.code: slug for slug, rule in self.rules.items()}
 
 
-_SLUG = re.compile(r"[a-z0-9]+(?:-[a-z0-9]+)*")
-_CODE = re.compile(r"[A-Za-z0-9]+")
+_UNNAMEABLE = re.compile("[\x00-\x1f\x7f-\x9f]|^\\s|\\s$")
 
 
 def rule_problem(rule: type[Rule]) -> str | None:
@@ -141,13 +140,10 @@ def rule_problem(rule: type[Rule]) -> str | None:
         or rule.severity not in ("error", "warning", "info")
     ):
         return "is incomplete (needs slug, code, severity error|warning|info, summary)"
-    if not _SLUG.fullmatch(rule.slug) or not _CODE.fullmatch(rule.code):
-        # A manifest names rules by slug or code (`select`, `ignore`, `ignore:` per clip): an
-        # empty one was a blank row in `blendspace rules`, and `Bad Slug!` could not be named.
-        return (
-            f"has slug {rule.slug!r} and code {rule.code!r}: a slug is lower-case words joined by '-' "
-            "(e.g. studio-min-cycle-length), a code letters and digits (e.g. ST001)"
-        )
+    if any(not name.strip() or _UNNAMEABLE.search(name) for name in (rule.slug, rule.code)):
+        # A manifest names rules by slug or code (`select`, `ignore`, per-clip `ignore:`): an empty
+        # one was a blank row in `blendspace rules`. Any other text can be written in YAML.
+        return f"has slug {rule.slug!r} and code {rule.code!r}: both must be non-empty text without control characters"
     problem = _options_problem(rule.Options)
     return None if problem is None else f"has bad Options: {problem}"
 

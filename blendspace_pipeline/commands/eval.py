@@ -136,6 +136,7 @@ def read_points(path: Path, doc: BlendSpaceDocument) -> np.ndarray:
         raise InputError(
             f"cannot read points: {error}", path=path, hint="give a CSV file of x,y rows"
         ) from None
+    text = text.removeprefix("\ufeff")  # Excel's UTF-8 byte-order mark, before a number or a header
     rows: list[tuple[float, float]] = []
     order = (0, 1)  # the column of x, of y
     for number, line in enumerate(text.splitlines(), start=1):

@@ -327,10 +327,11 @@ class Mask(_Model):
 
 
 def _layer_name(value: str) -> str:
-    """A layer name `eval --layer NAME=VALUE` can reach: not empty, no `=` and no control character."""
+    """A layer name `eval --layer NAME=VALUE` can reach: not empty, no `=`, no control character,
+    no space at either end (`--layer` strips them)."""
     if not value.strip():
         raise rule_error("the layer name is empty", "name the layer, e.g. name: lateral")
-    if "=" in value or _UNPRINTABLE.search(value):
+    if "=" in value or _UNPRINTABLE.search(value) or value != value.strip():
         raise rule_error(
             f"the layer name {value!r} cannot be given to `eval --layer NAME=VALUE`",
             "use letters, digits, spaces, '_' or '-', e.g. name: lateral",

@@ -88,11 +88,16 @@ def dependency_state(paths: list[Path]) -> list[list[str]]:
         except OSError:
             state.append([str(path), "", ""])
             continue
-        if not stat.S_ISREG(info.st_mode):  # a buffer at /dev/zero or a FIFO: never read (the
-            state.append([str(path), stat_key(path, info), "not a file"])  # reader says why)
+        if not stat.S_ISREG(info.st_mode) or info.st_size > MAX_DEPENDENCY_BYTES:
+            # A buffer at /dev/zero, a FIFO, or one past what the readers take: never read (the
+            # reader says why; a 16 GiB sparse buffer was hashed for 22 s first).
+            state.append([str(path), stat_key(path, info), "not read"])
             continue
         state.append([str(path), stat_key(path, info), content_digest(path)])
     return state
+
+
+MAX_DEPENDENCY_BYTES = 2 * 1024**3  # the readers' own limit (`readers.limits.MAX_FILE_BYTES`)
 
 
 def dependency_settings(settings_key: str, state: list[list[str]]) -> str:
@@ -103,6 +108,17 @@ def dependency_settings(settings_key: str, state: list[list[str]]) -> str:
         return settings_key
     digest = hashlib.sha256("\n".join(f"{path}|{digest}" for path, _, digest in state).encode())
     return f"{settings_key}|dependencies:{digest.hexdigest()}"
+
+
+def _settled_key(key: str) -> bool:
+    """`settled` for a `stat_key` (path|size|mtime|inode); a missing file ("") has nothing to settle."""
+    if not key:
+        return True
+    try:
+        mtime_ns = int(key.rsplit("|", 3)[2])
+    except (IndexError, ValueError):
+        return False
+    return time.time_ns() - mtime_ns > 2_000_000_000
 
 
 def dependencies_moved(state: list[list[str]]) -> bool:
@@ -304,7 +320,9 @@ class Pack:
         measured: list[tuple[str, Measurement]],
         dependencies: list[list[str]] | None = None,
     ) -> None:
-        if settled(info):
+        # A file (or a dependency) modified in the last seconds may change again with the same
+        # size and mtime: remembered only once all of them have settled.
+        if settled(info) and all(_settled_key(known) for _, known, _ in dependencies or []):
             known = stat_key(path, info)
             self.used_digests[known] = digest
             remember_digest(known, digest)

@@ -250,7 +250,9 @@ def watched_paths(space: object) -> list[Path]:
             candidate = loaded.directory / candidate
         if plugin.endswith(".py") or candidate.is_file():
             paths.append(candidate)
-    paths += [Path(f) for f in os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep) if f]
+    for folder in [Path(f) for f in os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep) if f]:
+        paths.append(folder)  # a file added or removed
+        paths += sorted(folder.glob("*.py")) if folder.is_dir() else []  # one fixed in place
     for layer in space.layer_spaces:
         if isinstance(layer, BetaSpace):
             paths += watched_paths(layer.space)

@@ -55,6 +55,6 @@ def _gltf_buffers(path: Path, project: Path | None) -> list[Path]:
             continue
         try:
             found.append(confined(path, unquote(uri), roots, what="glTF buffer"))
-        except (ClipReadError, OSError, ValueError):
+        except (ClipReadError, OSError, ValueError, RuntimeError):  # RuntimeError: a symlink loop
             continue
     return found
