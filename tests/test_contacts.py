@@ -254,6 +254,8 @@ GROUNDS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
     "slope 8%": lambda z: 0.08 * z,
     "slope 25%": lambda z: 0.25 * z,
     "down 30%": lambda z: -0.3 * z,
+    # Up then down: the body's height has no trend over the take, the ground under the feet does.
+    "hill": lambda z: 0.3 - 0.3 * np.abs(z - 1.2) / 1.2,
     "stairs 17 cm": _stairs(0.17, 0.3),
     "stairs down 15 cm": _stairs(-0.15, 0.3),
 }

@@ -47,12 +47,15 @@ _RELEASE = 1.4
 _MIN_EVENT = 0.05
 # Smoothing window of the speed signal, seconds.
 _SMOOTH = 0.05
-# Uneven ground (a slope, stairs): where the body climbs or descends over the take (its height's
-# trend) more than this many metres and more than a foot's "near the floor" allows, each frame's
-# floor is the lowest the foot came over that spot of ground (cells of `_GROUND_CELL` metres and
-# their neighbours), not the take's one floor: later plants were all above that floor, and lost.
-# Below it the one floor stands (a flat capture's pelvis drifts a few centimetres: CMU 131_01's 8).
-_UNEVEN = 0.1
+# Uneven ground (a slope, stairs, a hill): where the ground under the feet (the lowest foot joint's
+# lowest point in each `_GROUND_WINDOW` of the take) spans more than this many metres, each
+# frame's floor is the lowest the foot came over that spot of ground (cells of `_GROUND_CELL`
+# metres and their neighbours), not the take's one floor: later plants were all above that floor,
+# and lost. Below it the one floor stands. The feet, not the body: a take that sits down, crouches
+# or holds a foot up keeps a foot on the one floor (the body's height trend had set a raised foot
+# down in the air).
+_UNEVEN = 0.06  # twice the narrowest "near the floor" band (3 cm); CMU 131 spans 0.01-0.03
+_GROUND_WINDOW = 1.0  # seconds: a stride at a slow walk, so each window holds a plant
 _GROUND_CELL = 0.1
 # In place (the body ends under this many m/s from where it started): a planted foot slides back
 # under the body at the walk's speed (a treadmill, Mixamo's "In Place"); when both feet slide
@@ -204,7 +207,6 @@ def detect_contacts(
     speed_limit = _PLANTED_SPEED + _PLANTED_SPEED_SHARE * travel
     # In place: the body ends where it started (its limbs' swing adds path, not displacement).
     still = duration <= 0 or float(vector_norm(centre[-1] - centre[0])) / duration < _IN_PLACE_TRAVEL
-    climb = _climb(_joint_mean(world_pos, meters_per_unit)[:, up] * up_sign)
     window = max(1, round(_SMOOTH * fps))
     reach = max(1, round(0.5 * _SMOOTH * fps))
     signals = [
@@ -212,6 +214,7 @@ def detect_contacts(
         for joints in feet
     ]
     belt = still and _feet_share_a_belt([chain[0] for chain in signals], fps)
+    uneven = _ground_span([foot.height for chain in signals for foot in chain], fps) > _UNEVEN
     found = []
     for chain in signals:
         planted = np.zeros(frames, dtype=bool)
@@ -220,9 +223,7 @@ def detect_contacts(
             low, near = foot.height - foot.floor, foot.near
             if belt:
                 speed = _on_the_belt(foot.track, fps, reach, low <= near, speed)
-            if climb > max(
-                near, _UNEVEN
-            ):  # a slope or stairs: the floor under the foot, and its lift over it
+            if uneven:  # a slope, stairs: the floor under the foot, and its lift over it
                 low = foot.height - _floor_under(foot.height, foot.track)
                 lift = stats.percentiles(low, (100.0 - _FLOOR_PERCENTILE,))[0]
                 near = float(np.clip(_HEIGHT_SHARE * lift, *_HEIGHT_BOUNDS))
@@ -297,14 +298,22 @@ def _on_the_belt(track: FloatArray, fps: float, reach: int, down: BoolArray, spe
     return _ground_speed(track - slide, fps, reach)
 
 
-def _climb(height: FloatArray) -> float:
-    """How far (metres) the body's height ``height`` (per frame) rises or falls over the take, by
-    its least-squares trend: a stride's bob has none; a slope or stairs do."""
-    if len(height) < 2:
+def _ground_span(heights: list[FloatArray], fps: float) -> float:
+    """How far (metres) the ground under the feet rises or falls over the take: per `_GROUND_WINDOW`,
+    the lowest point of any foot joint (``heights``), then the span of those lows (each the median
+    of it and its neighbours). A stride's lift, a raised foot or a sit-down leave one foot on the
+    floor."""
+    lowest = np.min(np.stack(heights), axis=0)
+    size = max(1, round(_GROUND_WINDOW * fps))
+    blocks = len(lowest) // size
+    if blocks < 2:
         return 0.0
-    frames = np.arange(len(height), dtype=np.float64)
-    slope = float(np.polyfit(frames, height, 1)[0])
-    return abs(slope) * (len(height) - 1)
+    # The 10th percentile, not the minimum: a glitch frame (smoothed over a few frames) is no
+    # ground; a plant holds a third of a stride or more.
+    lows = np.percentile(lowest[: blocks * size].reshape(blocks, size), 10.0, axis=1)
+    if blocks >= 5:  # one glitch frame moves its window's low only: the median of three drops it
+        lows = np.median(np.stack([lows[:-2], lows[1:-1], lows[2:]]), axis=0)
+    return float(lows.max() - lows.min())
 
 
 def _floor_under(height: FloatArray, track: FloatArray) -> FloatArray:
