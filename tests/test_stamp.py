@@ -239,3 +239,45 @@ def test_a_plugin_fixed_or_added_after_a_failed_build_rebuilds(
         encoding="utf-8",
     )
     assert "plugin-error" not in _run(argv, capsys)[1]
+
+
+def test_a_clip_in_a_new_folder_two_levels_down_a_glob_rebuilds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`clips/*/*/*.bvh` with an empty `clips/e/`: a clip added in a new `clips/e/s1/` replayed the
+    old build (only the glob's root and its last folder level were watched)."""
+    manifest = _project(tmp_path)
+    deep = tmp_path / "clips" / "a" / "b"
+    deep.mkdir(parents=True)
+    for spec in SPECS:
+        (tmp_path / "clips" / f"{spec.name}.bvh").rename(deep / f"{spec.name}.bvh")
+    (tmp_path / "clips" / "e").mkdir()
+    manifest.write_text(
+        "schema_version: 1\nname: gait\nclips:\n  - path: 'clips/*/*/*.bvh'\noutput: {formats: [json]}\n",
+        encoding="utf-8",
+    )
+    argv = ["build", str(manifest), "--out", str(tmp_path / "out"), "--no-fix"]
+    Counter(monkeypatch)
+    assert "built 4 samples" in _run(argv, capsys)[1]
+    (tmp_path / "clips" / "e" / "s1").mkdir()
+    write_bvh_clip(
+        generate(GaitSpec("jog", speed=2.5, duration=1.0)), tmp_path / "clips" / "e" / "s1" / "jog.bvh"
+    )
+    assert "built 5 samples" in _run(argv, capsys)[1]
+
+
+def test_a_rule_path_file_fixed_in_place_rebuilds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A broken file in a `BLENDSPACE_RULE_PATH` folder, fixed in place (the folder's mtime does
+    not move), replayed its plugin-error."""
+    manifest = _project(tmp_path)
+    folder = tmp_path / "rule_path"
+    folder.mkdir()
+    rule = folder / "studio_rule.py"
+    rule.write_text("this is not python\n", encoding="utf-8")
+    monkeypatch.setenv("BLENDSPACE_RULE_PATH", str(folder))
+    argv = ["build", str(manifest), "--out", str(tmp_path / "out"), "--no-fix"]
+    assert "plugin-error" in _run(argv, capsys)[1]
+    rule.write_text("# fixed: no rules here yet\n", encoding="utf-8")
+    assert "plugin-error" not in _run(argv, capsys)[1]

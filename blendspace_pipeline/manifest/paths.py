@@ -331,9 +331,13 @@ def searched_folders(loaded: LoadedManifest, entries: Sequence[ClipEntry] | None
         folders.append(root)
         if "**" in pattern:
             folders += _folders_under(root)
-        elif "/" in pattern:  # `clips/*/walk.bvh`: the folders its leading parts match
-            leading = pattern.rsplit("/", 1)[0]
-            folders += [root / name for name in glob.glob(leading, root_dir=root) if (root / name).is_dir()]
+        elif "/" in pattern:  # `clips/*/*/walk.bvh`: the folders each leading part matches
+            parts = pattern.split("/")[:-1]
+            for depth in range(1, len(parts) + 1):
+                leading = "/".join(parts[:depth])
+                folders += [
+                    root / name for name in glob.glob(leading, root_dir=root) if (root / name).is_dir()
+                ]
     return folders
 
 
