@@ -58,7 +58,20 @@ def _gltf_with_a_buffer(folder: Path, speed: float) -> Path:
     return buffer
 
 
-@pytest.mark.parametrize("kind", ["usd", "gltf"])
+def _glb_with_a_buffer(folder: Path, speed: float) -> Path:
+    """clips/walk.glb whose buffer is ../bin/walk.bin (a JSON chunk only, as some exporters
+    write a GLB with its data beside it)."""
+    buffer = _gltf_with_a_buffer(folder, speed)
+    gltf = folder / "clips" / "walk.gltf"
+    text = gltf.read_bytes()
+    text += b" " * (-len(text) % 4)
+    gltf.unlink()
+    header = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(text)) + struct.pack("<I4s", len(text), b"JSON")
+    (folder / "clips" / "walk.glb").write_bytes(header + text)
+    return buffer
+
+
+@pytest.mark.parametrize("kind", ["usd", "gltf", "glb"])
 def test_editing_the_file_a_clip_is_read_with_re_measures_it(
     kind: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -67,11 +80,11 @@ def test_editing_the_file_a_clip_is_read_with_re_measures_it(
         write_usd_clip(
             generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
         )
-    make = _usd_with_a_layer if kind == "usd" else _gltf_with_a_buffer
+    make = {"usd": _usd_with_a_layer, "gltf": _gltf_with_a_buffer, "glb": _glb_with_a_buffer}[kind]
     other = make(tmp_path, 1.4)
-    assert file_dependencies(
-        tmp_path / "clips" / f"walk.{'usda' if kind == 'usd' else 'gltf'}", tmp_path
-    ) == [other]
+    assert file_dependencies(tmp_path / "clips" / f"walk.{'usda' if kind == 'usd' else kind}", tmp_path) == [
+        other
+    ]
     manifest = tmp_path / "manifest.yaml"
     manifest.write_text(
         "schema_version: 1\nname: t\nclips:\n  - path: clips/*\noutput: {formats: [json]}\n", encoding="utf-8"

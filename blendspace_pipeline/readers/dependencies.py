@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 from pathlib import Path
 from urllib.parse import unquote
 
@@ -25,7 +26,7 @@ def file_dependencies(path: Path, project: Path | None = None) -> list[Path]:
     Only files the readers may open count (inside the clip's folder or ``project``, the
     manifest's: `limits.confined`); a reference elsewhere is reported when the clip is read."""
     suffix = path.suffix.lower()
-    if suffix == ".gltf":
+    if suffix in (".gltf", ".glb"):  # a GLB's buffers may name files too (the reader follows them)
         found = _gltf_buffers(path, project)
     elif suffix in USD_SUFFIXES:
         from blendspace_pipeline.readers.usd import composed_layers
@@ -43,7 +44,9 @@ def _gltf_buffers(path: Path, project: Path | None) -> list[Path]:
     """The external buffers (`buffers[].uri` that is no `data:` URI), relative to the file."""
     try:
         check_regular(path, what="glTF file")
-        document = json.loads(read_regular_file(path, what="glTF file"))
+        document = json.loads(
+            _glb_json(path) if path.suffix.lower() == ".glb" else read_regular_file(path, what="glTF file")
+        )
         buffers = document.get("buffers") or []
     except (ClipReadError, OSError, ValueError, AttributeError, RecursionError):
         return []  # the reader reports what is wrong with the file
@@ -58,3 +61,18 @@ def _gltf_buffers(path: Path, project: Path | None) -> list[Path]:
         except (ClipReadError, OSError, ValueError, RuntimeError):  # RuntimeError: a symlink loop
             continue
     return found
+
+
+def _glb_json(path: Path) -> bytes:
+    """The JSON chunk of a binary glTF (its first chunk), read without the binary one."""
+    with open(path, "rb") as stream:
+        header = stream.read(20)
+        if len(header) < 20 or header[:4] != b"glTF" or header[16:20] != b"JSON":
+            return b"{}"
+        length = struct.unpack_from("<I", header, 12)[0]
+        if length > MAX_GLB_JSON_BYTES:
+            return b"{}"
+        return stream.read(length)
+
+
+MAX_GLB_JSON_BYTES = 256 * 1024**2  # the reader refuses more
