@@ -102,7 +102,8 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured, list[list[str]]]:
     path, settings, time_range, project, library = job
     check_regular(path, what="clip file")  # hashing a FIFO for the cache key would hang
     digest = cache.content_digest(path)
-    dependencies = cache.dependency_state(file_dependencies(path, project))
+    opened: list[object] = []  # held until the clip is read: its USD layers are parsed once
+    dependencies = cache.dependency_state(file_dependencies(path, project, opened))
     key = cache.cache_key(
         path, cache.dependency_settings(settings.cache_key(), dependencies), time_range, digest
     )

@@ -20,18 +20,22 @@ from blendspace_pipeline.readers.limits import allowed_roots, check_regular, con
 USD_SUFFIXES = frozenset({".usd", ".usda", ".usdc"})  # a .usdz packs its layers in its own bytes
 
 
-def file_dependencies(path: Path, project: Path | None = None) -> list[Path]:
+def file_dependencies(
+    path: Path, project: Path | None = None, keep: list[object] | None = None
+) -> list[Path]:
     """Absolute paths of the files ``path`` is read with besides itself (sorted; a file named but
     missing is listed too: creating it changes the clip); [] for formats that keep one file.
     Only files the readers may open count (inside the clip's folder or ``project``, the
-    manifest's: `limits.confined`); a reference elsewhere is reported when the clip is read."""
+    manifest's: `limits.confined`); a reference elsewhere is reported when the clip is read.
+    ``keep``: receives what was opened to find them (USD layers), for the caller to hold while it
+    reads the clip."""
     suffix = path.suffix.lower()
     if suffix in (".gltf", ".glb"):  # a GLB's buffers may name files too (the reader follows them)
         found = _gltf_buffers(path, project)
     elif suffix in USD_SUFFIXES:
         from blendspace_pipeline.readers.usd import composed_layers
 
-        found = composed_layers(path, project)
+        found = composed_layers(path, project, keep)
     else:
         return []
     own = os.path.normcase(os.path.abspath(path))

@@ -89,7 +89,7 @@ def _check_text(path: Path) -> None:
         ) from None
 
 
-def _check_dependencies(path: Path) -> list[Path]:
+def _check_dependencies(path: Path, keep: list[object] | None = None) -> list[Path]:
     """Every sublayer, reference and payload resolves inside the project and is a regular file,
     checked layer by layer *before* USD composes (and so reads) any of them. Returns the layer
     files the clip composes besides its own (a `.usdz` package's inner layers are its bytes)."""
@@ -109,6 +109,8 @@ def _check_dependencies(path: Path) -> list[Path]:
         layer = Sdf.Layer.FindOrOpen(current)
         if layer is None:
             continue  # Usd.Stage.Open reports it
+        if keep is not None:
+            keep.append(layer)
         dependencies = (
             layer.GetCompositionAssetDependencies()
             if hasattr(layer, "GetCompositionAssetDependencies")
@@ -127,13 +129,16 @@ def _check_dependencies(path: Path) -> list[Path]:
     return found
 
 
-def composed_layers(path: Path, project: Path | None = None) -> list[Path]:
+def composed_layers(path: Path, project: Path | None = None, keep: list[object] | None = None) -> list[Path]:
     """The layer files ``path`` composes (`_check_dependencies`, with the roots `read_clips`
-    allows); [] when one of them is not allowed (reading the clip says why)."""
+    allows); [] when one of them is not allowed (reading the clip says why). ``keep`` receives
+    the opened layers: while the caller holds them, reading the clip opens none of them again
+    (USD's layer registry keeps a layer only while it is referenced; an 18 MB shared layer was
+    parsed twice per clip)."""
     token = REFERENCE_ROOTS.set(allowed_roots(path, project))
     try:
         check_regular(path, what="USD file")
-        return _check_dependencies(path)
+        return _check_dependencies(path, keep)
     except (ClipReadError, Tf.ErrorException):  # a broken layer: reading the clip says where
         return []
     finally:
