@@ -552,19 +552,8 @@ def test_a_small_character_in_centimetres_is_not_read_silently_as_an_adult_in_in
     """A child's or a goblin's legs (0.25-0.41 m) in centimetres are an adult's in inches: read so,
     at 2.5 times their speed, with no word (confidence 0.29 to 0.95). Now a `units` guess says
     so (detection-guess), naming both units; `units: cm` settles it to the true speed."""
-    from blendspace_pipeline.motion.clip import Skeleton
-
     base = generate(GaitSpec("w", speed=1.4, turn_rate=30.0, duration=2.0, stride_length=1.4))
-    factor = 100.0 * scale  # a scaled rig, written in centimetres, no unit stated (as a BVH)
-    sk = base.skeleton
-    small = Clip(
-        "child",
-        base.source,
-        Skeleton(sk.names, sk.parents, sk.rest_translations * factor, sk.rest_rotations),
-        base.rotations,
-        base.translations * factor,
-        base.fps,
-    )
+    small = _resized(base, 100.0 * scale)  # a scaled rig, written in centimetres, no unit stated (as a BVH)
     read = measure(small, RigSettings())
     assert read.units_guessed and [g.what for g in read.guesses] == ["units"]
     stated = measure(small, RigSettings(units="cm"))
@@ -577,18 +566,16 @@ def test_a_giant_in_metres_is_advised_metres_first(scale: float) -> None:
     """An ogre's legs (1.2-2.5 m) fit no adult in any unit: the clip is read at the unit that makes
     them an adult's (a guess, as before), and the advice now names metres first, which makes them
     the giant's they are (it named `units: 0.6667` alone)."""
-    from blendspace_pipeline.motion.clip import Skeleton
-
-    base = generate(GaitSpec("w", speed=1.4, duration=2.0))
-    sk = base.skeleton
-    ogre = Clip(
-        "ogre",
-        base.source,
-        Skeleton(sk.names, sk.parents, sk.rest_translations * scale, sk.rest_rotations),
-        base.rotations,
-        base.translations * scale,
-        base.fps,
-    )
+    ogre = _resized(generate(GaitSpec("w", speed=1.4, duration=2.0)), scale)
     [guess] = [g for g in measure(ogre, RigSettings()).guesses if g.what == "units"]
     assert guess.override.startswith("skeleton: {units: m} (legs")
     assert measure(ogre, RigSettings(units="m")).features["speed"] == pytest.approx(1.4 * scale, rel=0.02)
+
+
+def _resized(clip: Clip, factor: float) -> Clip:
+    """``clip``'s rig and motion ``factor`` times as big, with no unit or up axis stated (a BVH)."""
+    from blendspace_pipeline.motion.clip import Skeleton
+
+    sk = clip.skeleton
+    skeleton = Skeleton(sk.names, sk.parents, sk.rest_translations * factor, sk.rest_rotations)
+    return Clip(clip.name, clip.source, skeleton, clip.rotations, clip.translations * factor, clip.fps)

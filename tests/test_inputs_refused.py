@@ -32,6 +32,19 @@ def _project(folder: Path, extra: str = "", clips: str = "  - path: clips/*.bvh\
     return manifest
 
 
+def _with_rule(folder: Path, slug: str, check_body: str, preamble: str = "") -> Path:
+    """A project whose plugin rules/studio.py holds one rule ``slug`` whose check runs
+    ``check_body``, after module-level ``preamble``."""
+    (folder / "rules").mkdir()
+    (folder / "rules" / "studio.py").write_text(
+        f"from blendspace_pipeline.api import Rule\n{preamble}\n\n\nclass Studio(Rule):\n"
+        f"    slug = {slug!r}\n    code = 'ST300'\n    severity = 'warning'\n    summary = 'a test rule'\n\n"
+        f"    def check(self, space):\n        {check_body}\n",
+        encoding="utf-8",
+    )
+    return _project(folder, extra="plugins: [rules/studio.py]\n")
+
+
 def test_a_position_on_a_glob_of_several_clips_is_refused(tmp_path: Path) -> None:
     """Every clip the glob matched was put at the hand position (a backward run at +4 m/s)."""
     manifest = _project(
@@ -58,14 +71,12 @@ def test_mirror_tokens_that_swap_nothing_are_refused(tmp_path: Path, tokens: str
 def test_a_plugin_that_prints_leaves_the_json_output_whole(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    (tmp_path / "rules").mkdir()
-    (tmp_path / "rules" / "noisy.py").write_text(
-        "from blendspace_pipeline.api import Rule\nprint('loading noisy')\n\n\nclass Noisy(Rule):\n"
-        "    slug = 'studio-noisy'\n    code = 'ST300'\n    severity = 'warning'\n    summary = 'prints'\n\n"
-        "    def check(self, space):\n        print('debug: checking', len(space.samples))\n        return iter(())\n",
-        encoding="utf-8",
+    manifest = _with_rule(
+        tmp_path,
+        "studio-noisy",
+        "print('debug: checking', len(space.samples))\n        return iter(())",
+        preamble="print('loading noisy')",
     )
-    manifest = _project(tmp_path, extra="plugins: [rules/noisy.py]\n")
     assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
     out = capsys.readouterr()
     json.loads(out.out)  # whole JSON
@@ -126,14 +137,7 @@ def test_a_rule_reporting_one_clip_name_as_a_string_names_that_clip(
 ) -> None:
     """`self.report(..., clips="walk")` was read letter by letter ("clips not in the space: a, k,
     l, w", a rule-crashed finding)."""
-    (tmp_path / "rules").mkdir()
-    (tmp_path / "rules" / "one.py").write_text(
-        "from blendspace_pipeline.api import Rule\n\n\nclass One(Rule):\n"
-        "    slug = 'studio-one'\n    code = 'ST301'\n    severity = 'warning'\n    summary = 'names walk'\n\n"
-        "    def check(self, space):\n        yield self.report('walk is named', clips='walk')\n",
-        encoding="utf-8",
-    )
-    manifest = _project(tmp_path, extra="plugins: [rules/one.py]\n")
+    manifest = _with_rule(tmp_path, "studio-one", "yield self.report('walk is named', clips='walk')")
     assert main(["check", str(manifest), "--format", "json"]) in (0, 1)
     found = json.loads(capsys.readouterr().out)
     [finding] = [d for d in found["diagnostics"] if d["rule"] == "studio-one"]
