@@ -64,6 +64,7 @@ _GROUND_CELL = 0.1
 _IN_PLACE_TRAVEL = 0.1
 _CONVEYOR = 0.2
 _BELT_WINDOW = 0.25  # seconds either side
+_BELT_RATE = 60.0  # belt samples per second at most
 
 
 @dataclass(frozen=True)
@@ -283,15 +284,20 @@ def _on_the_belt(track: FloatArray, fps: float, reach: int, down: BoolArray, spe
     if frames < 2 or not down.any():
         return speed
     velocity = np.gradient(track, axis=0) * fps
-    half = max(1, round(_BELT_WINDOW * fps))
-    # Each frame's window of the low frames' motion (NaN elsewhere); its median per axis.
-    low = np.where(down[:, None], velocity, np.nan)
+    # At most `_BELT_RATE` samples a second: the belt changes over a stride, and the windowed
+    # median's cost grows with frames x window (a 300 s take at 240 fps took 5 s and 484 MB).
+    step = max(1, round(fps / _BELT_RATE))
+    every = np.arange(0, frames, step)
+    half = max(1, round(_BELT_WINDOW * fps / step))
+    # Each sample's window of the low frames' motion (NaN elsewhere); its median per axis.
+    low = np.where(down[every, None], velocity[every], np.nan)
     padded = np.concatenate([np.full((half, 2), np.nan), low, np.full((half, 2), np.nan)])
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1, axis=0)  # (F, 2, W)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1, axis=0)  # (S, 2, W)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a window without a low frame: NaN
-        belt = np.nanmedian(windows, axis=2)
-    belt = np.nan_to_num(belt)
+        sampled = np.nan_to_num(np.nanmedian(windows, axis=2))
+    index = np.arange(frames, dtype=np.float64)
+    belt = np.stack([np.interp(index, every, sampled[:, axis]) for axis in range(2)], axis=1)
     # The track as seen from the belt (its slide integrated and taken out), then the same
     # windowed speed as `_ground_speed`.
     slide = np.concatenate([np.zeros((1, 2)), np.cumsum(0.5 * (belt[1:] + belt[:-1]), axis=0) / fps])
