@@ -254,6 +254,15 @@ def _installed_here(entry: str) -> bool:
     )
 
 
+def plugin_file(plugin: str, base_dir: Path | None) -> Path | None:
+    """The file a `plugins:` entry names (relative to ``base_dir``, the manifest's folder), or None
+    when it names a module: a `.py` path, or an existing file, is a file (also one not there yet)."""
+    candidate = Path(plugin.replace("\\", "/"))
+    if not candidate.is_absolute() and base_dir is not None:
+        candidate = base_dir / candidate
+    return candidate if plugin.endswith(".py") or candidate.is_file() else None
+
+
 def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> LoadedRules:
     loaded = LoadedRules()
     package = importlib.import_module("blendspace_pipeline.rules")
@@ -294,10 +303,8 @@ def load_rules(plugins: Iterable[str] = (), base_dir: Path | None = None) -> Loa
         for path in sorted(directory.glob("*.py")):
             _load_path(path, loaded, f"rule file {path} (from {RULE_PATH_VARIABLE})")
     for plugin in plugins:
-        candidate = Path(plugin.replace("\\", "/"))
-        if not candidate.is_absolute() and base_dir is not None:
-            candidate = base_dir / candidate
-        if plugin.endswith(".py") or candidate.is_file():
+        candidate = plugin_file(plugin, base_dir)
+        if candidate is not None:
             if not candidate.is_file():
                 loaded.problems.append(
                     _engine_diagnostic(

@@ -367,6 +367,10 @@ class StyleLayer(_Model):
     def _addressable(cls, value: str) -> str:
         return _layer_name(value)
 
+    def entries(self) -> list[ClipEntry]:
+        """The style clips as clip entries (a bare path is an entry of that path)."""
+        return [ClipEntry(path=item) if isinstance(item, str) else item for item in self.clips]
+
     @field_validator("clips")
     @classmethod
     def _style_entry_keys(cls, value: list[str | ClipEntry]) -> list[str | ClipEntry]:

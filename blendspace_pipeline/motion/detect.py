@@ -1039,8 +1039,7 @@ def _doubt_detected_unit(leg: float, scale: float, override: str) -> DetectionGu
     goblin's (`_NO_ADULT_LEG`): a character of half an adult's size in centimetres reads as an
     adult in inches, confidently. Inches are rare in game animation; centimetres are common."""
     metres = leg * scale
-    edge = _PLAUSIBLE_LEG[1] / REFERENCE_LEG if metres >= REFERENCE_LEG else REFERENCE_LEG / _PLAUSIBLE_LEG[0]
-    confidence = max(0.0, 1.0 - abs(float(np.log(metres / REFERENCE_LEG))) / float(np.log(edge)))
+    confidence = _confidence(metres, REFERENCE_LEG, _PLAUSIBLE_LEG)
     unit = next((name for name, value in _CONVENTIONS.items() if abs(value / scale - 1.0) < 1e-9), None)
     in_cm = leg * UNIT_METERS["cm"]
     if unit == "in" and in_cm >= _NO_ADULT_LEG[0]:
@@ -1157,6 +1156,14 @@ def stated_unit_note(clip: Clip, world_pos: FloatArray, settings: RigSettings, u
     )
 
 
+def _confidence(metres: float, reference: float, plausible: tuple[float, float]) -> float:
+    """1 at the reference length, falling to 0 at the plausible range's edge (in log scale, where
+    the next convention's range begins 2.2x or more away)."""
+    low, high = plausible
+    edge = np.log(high / reference) if metres >= reference else np.log(reference / low)
+    return max(0.0, 1.0 - abs(float(np.log(metres / reference))) / float(edge))
+
+
 def _unit_from_length(
     length: float, reference: float, plausible: tuple[float, float], what: str, override: str
 ) -> tuple[float, str, DetectionGuess | None]:
@@ -1170,10 +1177,7 @@ def _unit_from_length(
     if fits:
         unit = min(fits, key=lambda u: abs(np.log(length * fits[u] / reference)))
         metres = length * fits[unit]
-        # Confidence: 1 at the reference, falling to 0 at the plausible range's edge (in log
-        # scale, where the next convention's range begins 2.2x or more away).
-        edge = np.log(high / reference) if metres >= reference else np.log(reference / low)
-        confidence = max(0.0, 1.0 - abs(float(np.log(metres / reference))) / float(edge))
+        confidence = _confidence(metres, reference, plausible)
         return fits[unit], f"detected ({unit}: {what} {metres:.2f} m, confidence {confidence:.2f})", None
     scale = reference / length
     override = f"skeleton: {{units: {scale:.4g}}}"

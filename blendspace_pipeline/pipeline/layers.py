@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from blendspace_pipeline.errors import ManifestError
-from blendspace_pipeline.manifest.models import BetaLayer, ClipEntry, StyleLayer
+from blendspace_pipeline.manifest.models import BetaLayer, StyleLayer
 from blendspace_pipeline.manifest.paths import resolve_clip_files
 from blendspace_pipeline.pipeline.measure_stage import measure_files
 from blendspace_pipeline.pipeline.progress import Progress
@@ -50,8 +50,7 @@ def analyse_layers(
 def _style(
     space: BlendSpace, layer: StyleLayer, index: int, jobs: int, progress: Progress | None
 ) -> StyleSpace:
-    entries = [ClipEntry(path=item) if isinstance(item, str) else item for item in layer.clips]
-    files = resolve_clip_files(space.manifest, entries=entries, key=("layers", index, "clips"))
+    files = resolve_clip_files(space.manifest, entries=layer.entries(), key=("layers", index, "clips"))
     clips = measure_files(space.manifest, files, jobs=jobs, progress=progress, part=f"layer {layer.name}")
     axis = style_axis(space.axes)
     positions = [axis.snap(clip.measurement.features[axis.feature]) for clip in clips]

@@ -232,8 +232,8 @@ def watched_paths(space: object) -> list[Path]:
     failed to load or did not exist (fixing or adding it must rebuild, not replay the
     plugin-error), the `BLENDSPACE_RULE_PATH` folders, and every folder a glob of `clips:` looks
     in (a clip added to a sub-folder that held none had replayed the old build)."""
-    from blendspace_pipeline.checks.rule_engine import RULE_PATH_VARIABLE
-    from blendspace_pipeline.manifest.models import ClipEntry, StyleLayer
+    from blendspace_pipeline.checks.rule_engine import RULE_PATH_VARIABLE, plugin_file
+    from blendspace_pipeline.manifest.models import StyleLayer
     from blendspace_pipeline.manifest.paths import searched_folders
     from blendspace_pipeline.space.model import BetaSpace, BlendSpace
 
@@ -242,14 +242,8 @@ def watched_paths(space: object) -> list[Path]:
     paths = searched_folders(loaded)
     for declared in loaded.model.layers:  # a style layer's clips are globs of this manifest too
         if isinstance(declared, StyleLayer):
-            entries = [ClipEntry(path=item) if isinstance(item, str) else item for item in declared.clips]
-            paths += searched_folders(loaded, entries)
-    for plugin in loaded.model.plugins:
-        candidate = Path(plugin.replace("\\", "/"))
-        if not candidate.is_absolute():
-            candidate = loaded.directory / candidate
-        if plugin.endswith(".py") or candidate.is_file():
-            paths.append(candidate)
+            paths += searched_folders(loaded, declared.entries())
+    paths += [f for f in (plugin_file(p, loaded.directory) for p in loaded.model.plugins) if f is not None]
     for folder in [Path(f) for f in os.environ.get(RULE_PATH_VARIABLE, "").split(os.pathsep) if f]:
         paths.append(folder)  # a file added or removed
         paths += sorted(folder.glob("*.py")) if folder.is_dir() else []  # one fixed in place

@@ -33,7 +33,7 @@ from blendspace_pipeline.errors import ClipReadError
 from blendspace_pipeline.motion import quaternions as quat
 from blendspace_pipeline.motion.clip import Clip, Skeleton, topological_order
 from blendspace_pipeline.motion.quaternions import FloatArray
-from blendspace_pipeline.readers.limits import confined, current_roots, read_regular_file
+from blendspace_pipeline.readers.limits import allowed_roots, confined, current_roots, read_regular_file
 
 SUFFIXES = (".gltf", ".glb")
 
@@ -93,6 +93,29 @@ def read(path: Path) -> list[Clip]:
         _read_clip(document, index, joints, name)
         for (index, joints), name in zip(selected, names, strict=True)
     ]
+
+
+def buffer_files(path: Path, project: Path | None = None) -> list[Path]:
+    """The external buffer files `read` opens for ``path`` (a `.gltf`'s, or a `.glb`'s that name
+    files), confined as `read` confines them; [] when the file is no readable glTF (reading it
+    says why). Remote and `data:` URIs are no files."""
+    try:
+        data = read_regular_file(path, what="glTF file")
+        root = _parse_glb(path, data)[0] if data[:4] == _GLB_MAGIC else _parse_json(path, data, 0)
+    except ClipReadError:
+        return []
+    buffers = root.get("buffers")
+    roots = allowed_roots(path, project)
+    found = []
+    for buffer in buffers if isinstance(buffers, list) else []:
+        uri = buffer.get("uri") if isinstance(buffer, dict) else None
+        if not isinstance(uri, str) or not uri or uri.startswith("data:") or "://" in uri:
+            continue
+        try:
+            found.append(confined(path, unquote(uri), roots, what="glTF buffer"))
+        except (ClipReadError, OSError, ValueError, RuntimeError):  # RuntimeError: a symlink loop
+            continue
+    return found
 
 
 def _error(path: Path, message: str, hint: str = _REEXPORT) -> ClipReadError:
