@@ -131,3 +131,47 @@ def test_without_a_font_the_server_warms_nothing_and_each_command_warns(
     assert caught == []
     with pytest.warns(UserWarning, match="found no font"):
         png.write_png(sample_document(), tmp_path / "plain.png")
+
+
+def test_sample_documents_made_ahead_are_the_ones_to_document_makes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`PreparedSamples`: made while the simulations run, taken only while the sample reads the
+    same; a sample that moved, a clip given its file name later, another output or working folder
+    get a new document. The document is the same either way."""
+    from dataclasses import replace
+
+    from blendspace_pipeline.pipeline.analysis import analyse
+    from blendspace_pipeline.pipeline.to_document import PreparedSamples, to_document
+
+    space = analyse(Path(__file__).resolve().parents[1] / "sample_project" / "manifest.yaml", converge=False)
+    out = tmp_path / "out"
+    prepared = PreparedSamples(lambda _space: out)
+    prepared.prepare(space)
+    made = {id(s): doc for s, (_, doc) in zip(space.samples, prepared.docs.values(), strict=True)}
+    first, second, third = space.samples[:3]
+    first.position = (first.position[0] + 1.0, first.position[1])
+    second.clip.source = tmp_path / "elsewhere" / "renamed.bvh"
+    third.clip = replace(third.clip, measurement=replace(third.clip.measurement))
+    document = to_document(space, out, prepared)
+    assert document.model_dump_json() == to_document(space, out).model_dump_json()
+    taken = [doc is made[id(s)] for s, doc in zip(space.samples, document.samples, strict=True)]
+    assert taken == [False, False, False] + [True] * (len(space.samples) - 3)
+    assert prepared.docs == {}  # each taken once
+    # Another output folder, or another working folder: none is taken.
+    for folder, cwd in ((tmp_path / "other", None), (out, tmp_path)):
+        prepared.prepare(space)
+        kept = dict(prepared.docs)
+        if cwd is not None:
+            monkeypatch.chdir(cwd)
+        document = to_document(space, folder, prepared)
+        assert not any(doc is kept[id(s)][1] for s, doc in zip(space.samples, document.samples, strict=True))
+        assert document.model_dump_json() == to_document(space, folder).model_dump_json()
+
+    def refuses(_space: object) -> Path:
+        raise ValueError("no output folder")
+
+    failing = PreparedSamples(refuses)
+    failing.prepare(space)  # an optimisation: never an error of its own
+    assert failing.docs == {}
+    assert to_document(space, out, failing).model_dump_json() == to_document(space, out).model_dump_json()

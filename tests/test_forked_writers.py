@@ -323,3 +323,105 @@ def test_without_fork_jobs_2_writes_everything_here_in_order(
     monkeypatch.setattr(report, "write_html_report", real_html)
     assert _build(manifest, tmp_path / "serial", capsys, 1)[0] in (0, 1)
     assert _outputs(tmp_path / "no-fork") == _outputs(tmp_path / "serial")
+
+
+@pytest.mark.parametrize("maps_ready", [True, False])
+def test_an_edits_writers_are_shared_out_and_write_the_serial_bytes(
+    maps_ready: bool, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """When the early maps are ready by the time the writers start (an edit), the writers are
+    shared out between this process and the children (`outputs._balanced`): the HTML here, the
+    PNG in a child; otherwise the PNG starts early in a child. The bytes are the serial ones."""
+    from blendspace_pipeline import report
+    from blendspace_pipeline.pipeline.early_quality import EarlyQuality
+
+    manifest = _project(tmp_path / "p")
+    monkeypatch.setattr(EarlyQuality, "ready", lambda self: maps_ready)
+    where = tmp_path / "writer-pids"
+    for name in ("write_png", "write_html_report"):
+        real = getattr(report, name)
+
+        def recording(
+            doc: object, path: Path, *args: object, _real: object = real, _name: str = name, **kw: object
+        ) -> None:
+            with where.open("a", encoding="utf-8") as stream:
+                stream.write(f"{_name} {os.getpid()}\n")
+            _real(doc, path, *args, **kw)  # type: ignore[operator]
+
+        monkeypatch.setattr(report, name, recording)
+    built = [
+        main(["build", str(manifest), "--no-fix", "--out", str(tmp_path / o), "--jobs", j])
+        for o, j in (("serial", "1"), ("parallel", "2"))
+    ]
+    capsys.readouterr()
+    assert built[0] == built[1] and built[0] in (0, 1)
+    assert _outputs(tmp_path / "serial") == _outputs(tmp_path / "parallel")
+    pids = [line.split() for line in where.read_text(encoding="utf-8").splitlines()]
+    parallel = {name: int(pid) for name, pid in pids[2:]}
+    assert parallel["write_png"] != os.getpid()
+    assert (parallel["write_html_report"] == os.getpid()) is maps_ready
+
+
+def test_writers_shared_out_fail_in_the_serial_order(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The USD (written here) and the PNG (in a child, after the JSON) both fail: the USD's error
+    is shown, as serially; the PNG alone failing in its child is shown with its own message."""
+    from blendspace_pipeline import report
+    from blendspace_pipeline.pipeline import outputs
+    from blendspace_pipeline.pipeline.early_quality import EarlyQuality
+
+    assert outputs._balanced(["json", "usd", "html", "png"], 2) == [["usd", "html"], ["json", "png"]]
+    assert outputs._balanced(["json", "usd", "html", "png"], 4) == [["html"], ["png"], ["usd"], ["json"]]
+    assert outputs._balanced(["json"], 2) == [["json"], []]
+    manifest = _project(tmp_path / "p")
+    monkeypatch.setattr(EarlyQuality, "ready", lambda self: True)
+
+    def png_fails(doc: object, path: Path) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "the-png")
+
+    monkeypatch.setattr(report, "write_png", png_fails)
+    shown = []
+    for usd_fails in (False, True):
+        if usd_fails:
+            from blendspace_pipeline.writers import usd_blendspace
+
+            def usd_refused(doc: object, path: Path) -> None:
+                raise OSError(errno.EACCES, os.strerror(errno.EACCES), "the-usd")
+
+            monkeypatch.setattr(usd_blendspace, "write_usd_blendspace", usd_refused)
+        for jobs in ("1", "2"):
+            out = tmp_path / f"{usd_fails}-{jobs}"
+            code = main(["build", str(manifest), "--no-fix", "--out", str(out), "--jobs", jobs])
+            shown.append((code, capsys.readouterr().err.replace(str(out), "OUT")))
+            assert not out.exists()
+    assert shown[0] == shown[1] and shown[0][0] == 2 and "the-png" in shown[0][1]
+    assert shown[2] == shown[3] and shown[2][0] == 2 and "Permission denied (the-usd)" in shown[2][1]
+
+
+def test_a_build_makes_its_sample_documents_beside_the_simulations_and_writes_the_serial_bytes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from blendspace_pipeline.pipeline import placeholders, to_document
+
+    monkeypatch.setattr(placeholders, "PARALLEL_FROM", 0)  # the 13-clip sample: simulate side by side
+    prepared: list[int] = []
+    real = to_document.PreparedSamples.prepare
+
+    def counted(self: to_document.PreparedSamples, space: object) -> None:
+        prepared.append(os.getpid())
+        real(self, space)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(to_document.PreparedSamples, "prepare", counted)
+    sample = Path(__file__).resolve().parents[1] / "sample_project" / "manifest.yaml"
+    for out, jobs, fixes in (("s", "1", False), ("p", "2", False), ("sf", "1", True), ("pf", "2", True)):
+        args = ["build", str(sample), "--out", str(tmp_path / out), "--jobs", jobs]
+        assert main(args if fixes else [*args, "--no-fix"]) in (0, 1)
+    capsys.readouterr()
+    assert prepared == [os.getpid(), os.getpid()]  # once per --jobs 2 build, here
+    names = sorted(p.name for p in (tmp_path / "s").iterdir() if p.is_file())
+    assert names and all(
+        (tmp_path / "s" / n).read_bytes() == (tmp_path / "p" / n).read_bytes() for n in names
+    )
+    names = sorted(p.name for p in (tmp_path / "sf").iterdir() if p.is_file())
+    assert all((tmp_path / "sf" / n).read_bytes() == (tmp_path / "pf" / n).read_bytes() for n in names)

@@ -54,9 +54,9 @@ def test_side_by_side_gives_the_serial_answer_and_runs_trials_in_other_processes
     monkeypatch.setattr(placeholders, "_with_virtual", recorded)
     batches: list[int] = []
 
-    def counted(tasks: list[forked.Task], jobs: int) -> list[object]:
+    def counted(tasks: list[forked.Task], jobs: int, meanwhile: forked.Task | None = None) -> list[object]:
         batches.append(len(tasks))
-        return forked.results_of(tasks, jobs)
+        return forked.results_of(tasks, jobs, meanwhile)
 
     monkeypatch.setattr(placeholders, "results_of", counted)
     parallel = _converged(analysed, 2)
@@ -157,6 +157,47 @@ def test_results_come_back_in_order_and_the_first_failure_in_order_is_raised() -
         forked.results_of([lambda: 1, fails("child"), fails("later child")], 3)
     with pytest.raises(ValueError, match="here"):
         forked.results_of([fails("here"), fails("child")], 2)
+
+
+def test_with_work_meanwhile_every_task_runs_in_a_child_and_the_serial_error_is_raised() -> None:
+    here: list[int] = []
+    pids = forked.results_of([os.getpid, os.getpid], 2, meanwhile=lambda: here.append(os.getpid()))
+    assert here == [os.getpid()] and os.getpid() not in pids and len(set(pids)) == 2
+    # Without children (jobs 1) the work is done first, then the tasks, here.
+    order: list[str] = []
+    assert forked.results_of(
+        [lambda: order.append("task") or 1], 1, meanwhile=lambda: order.append("meanwhile")
+    ) == [1]
+    assert order == ["meanwhile", "task"]
+
+    def fails(text: str) -> forked.Task:
+        def task() -> None:
+            raise ValueError(text)
+
+        return task
+
+    with pytest.raises(ValueError, match="first"):
+        forked.results_of([fails("first"), fails("second")], 2, meanwhile=lambda: None)
+
+
+def test_the_work_meanwhile_is_done_once_beside_the_first_simulations(
+    analysed: BlendSpace, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`build` makes the samples' documents while the first batch of simulations runs."""
+    monkeypatch.setattr(placeholders, "PARALLEL_FROM", 0)
+    serial = _converged(analysed, 1)
+    seen: list[tuple[int, int]] = []
+    copied = copy.deepcopy(analysed)
+    placeholders.converge_placeholders(
+        copied, jobs=2, meanwhile=lambda space: seen.append((id(space), os.getpid()))
+    )
+    assert seen == [(id(copied), os.getpid())]
+    assert _answer(copied) == _answer(serial)
+    # Nothing simulated side by side (jobs 1): not called, the caller does the work itself.
+    placeholders.converge_placeholders(
+        copy.deepcopy(analysed), jobs=1, meanwhile=lambda space: seen.append((0, 0))
+    )
+    assert len(seen) == 1
 
 
 def _scan_staying(space: BlendSpace, without: tuple[str, ...]) -> list[tuple[float, float]]:

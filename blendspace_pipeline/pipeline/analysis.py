@@ -31,6 +31,7 @@ def analyse(
     converge: bool = True,
     on_placed: Callable[[BlendSpace], None] | None = None,
     out: Path | None = None,
+    while_converging: Callable[[BlendSpace], None] | None = None,
 ) -> BlendSpace:
     """Everything `check` does: read, measure, place, triangulate, analyse layers, run the rules.
 
@@ -40,6 +41,8 @@ def analyse(
     before the rules (`build` starts the blend quality maps there: `early_quality`).
     ``out``: the build's --out (else the manifest's `output.dir`): the clips its last build placed
     there are outputs, not takes, when a glob of `clips:` reaches them (`own_outputs.authored`).
+    ``while_converging``: work done while the placeholder simulations run in other processes
+    (`converge_placeholders`' ``meanwhile``).
     """
     loaded = load_manifest(manifest_path)
     files = authored(loaded, resolve_clip_files(loaded), out)
@@ -55,7 +58,7 @@ def analyse(
         on_placed(space)
     finish_analysis(space)
     if converge:
-        converge_placeholders(space, jobs=jobs)
+        converge_placeholders(space, jobs=jobs, meanwhile=while_converging)
     return space
 
 

@@ -81,8 +81,11 @@ class FixState:
     verdicts: dict[tuple[object, ...], Diagnostic] = field(default_factory=dict)
 
 
-def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]:
-    """Apply the manifest's `fixes:` one at a time, keeping each only if it improves the space."""
+def apply_fixes(
+    space: BlendSpace, jobs: int = 1, while_converging: Callable[[BlendSpace], None] | None = None
+) -> tuple[BlendSpace, FixState]:
+    """Apply the manifest's `fixes:` one at a time, keeping each only if it improves the space.
+    ``while_converging``: as `converge_placeholders`' ``meanwhile``, for the last space."""
     state = FixState()
     fixer = _Fixer(space, state)
     # Each fix is tried once per state of the space: one not kept is tried again once another
@@ -113,7 +116,7 @@ def apply_fixes(space: BlendSpace, jobs: int = 1) -> tuple[BlendSpace, FixState]
             break
     if attempts >= MAX_ATTEMPTS:
         fixer.out_of_attempts(space, set(tried))
-    converge_placeholders(space, jobs=jobs)
+    converge_placeholders(space, jobs=jobs, meanwhile=while_converging)
     # What was said of a fix whose finding a later fix cured is no longer so.
     present = {_about(d) for d in space.diagnostics}
     said = [verdict for about, verdict in state.verdicts.items() if about in present]

@@ -90,11 +90,24 @@ def run_tasks(tasks: Sequence[Task], jobs: int, start_order: Sequence[int] | Non
         raise errors[min(errors)]
 
 
-def results_of(tasks: Sequence[Task], jobs: int) -> list[Any]:
+def results_of(tasks: Sequence[Task], jobs: int, meanwhile: Callable[[], None] | None = None) -> list[Any]:
     """Every task's return value, in order: the first here, the others in up to ``jobs`` - 1
-    forked children meanwhile. Errors as `run_tasks` raises them (the serial order decides)."""
+    forked children meanwhile. Errors as `run_tasks` raises them (the serial order decides).
+
+    ``meanwhile``: work of this process's own that does not depend on the tasks (it must not
+    raise). Given, every task runs in a child (up to ``jobs`` at once) and this process does it
+    while they run; without children it runs first, here."""
     if jobs < 2 or len(tasks) < 2 or not can_fork():
+        if meanwhile is not None:
+            meanwhile()
         return [task() for task in tasks]
+    if meanwhile is not None:
+        with Children(tasks, jobs) as children:
+            meanwhile()
+            errors = children.wait()
+        if errors:
+            raise errors[min(errors)]
+        return [children.results.get(index) for index in range(len(tasks))]
     with Children(tasks[1:], jobs - 1) as children:
         first = tasks[0]()  # a failure here is the serial one: leaving the block kills the others
         errors = children.wait()

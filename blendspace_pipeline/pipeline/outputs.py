@@ -74,7 +74,7 @@ from blendspace_pipeline.pipeline.own_outputs import (
     still_placed,
 )
 from blendspace_pipeline.pipeline.progress import Progress
-from blendspace_pipeline.pipeline.to_document import to_document
+from blendspace_pipeline.pipeline.to_document import PreparedSamples, to_document
 from blendspace_pipeline.report.atomic import verify_written
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace
@@ -315,13 +315,17 @@ def write_outputs(
     layer_fixes: dict[str, FixState] | None = None,
     jobs: int = 1,
     maps: EarlyQuality | None = None,
+    prepared: PreparedSamples | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
     disk full) is bad input, exit 2, and leaves nothing behind. ``jobs``: processes for the
-    foot-skate map's blends; ``maps``: the blend quality maps, already under way (`early_quality`)."""
+    foot-skate map's blends; ``maps``: the blend quality maps, already under way (`early_quality`);
+    ``prepared``: sample documents made ahead (`to_document.PreparedSamples`)."""
     try:
         with _usd_errors_as_os_errors():
-            return _write_outputs(space, out_dir, formats, fixes or FixState(), layer_fixes or {}, jobs, maps)
+            return _write_outputs(
+                space, out_dir, formats, fixes or FixState(), layer_fixes or {}, jobs, maps, prepared
+            )
     except OSError as error:
         where = error.filename or out_dir
         raise InputError(
@@ -358,6 +362,7 @@ def _write_outputs(
     layer_fixes: dict[str, FixState],
     jobs: int = 1,
     maps: EarlyQuality | None = None,
+    prepared: PreparedSamples | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -374,7 +379,7 @@ def _write_outputs(
         for sample in sub.samples:
             if sample.generated:
                 sample.clip.source = out_dir / folder / f"{stems[id(sub)][sample.name]}{source_suffix(sub)}"
-    document = to_document(space, out_dir)
+    document = to_document(space, out_dir, prepared)
     remove_stale_staging(out_dir)
     staging = Path(tempfile.mkdtemp(prefix=f"{STAGING_PREFIX}{os.getpid()}-", dir=out_dir))
     try:
@@ -414,15 +419,20 @@ def _write_outputs(
         # writes the rest of them while the map's workers play; after it, up to N - 1 of the rest
         # fork (the longest first) and this process writes what is left, in order.
         # A failure is raised as the serial order of `formats` would have raised it.
+        # When the maps are already made (an edit: their child ran beside the rules), the blend
+        # quality is known and no writer needs to start early: the longest ones fork (the HTML
+        # first) and this process writes the rest, the PNG too. One child fewer, and the PNG
+        # drawn here instead of in a third process on two cores: an edited 1,000-clip build's
+        # writers took 0.27 s instead of 0.4 s (measured with benchmarks/bench_edit_ab.py).
         parallel = jobs > 1 and can_fork()
         slots = jobs - 1 if parallel else 0
-        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)
-        early, beside = (blind[:slots], blind[slots:]) if parallel else ([], [])
+        known = parallel and maps is not None and maps.ready()
+        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_EARLY_ORDER.index)
+        early, beside = (blind[:slots], blind[slots:]) if parallel and not known else ([], [])
         blind_text = document.model_dump_json(indent=2) + "\n" if early or beside else None
         started = plan(early, blind_text) if blind_text is not None else []
-        here = plan(beside, blind_text) if blind_text is not None else []
+        waiting = plan(beside, blind_text) if blind_text is not None else []
         errors: dict[int, BaseException] = {}
-        waiting = list(here)
 
         def meanwhile() -> None:
             while waiting:
@@ -469,24 +479,35 @@ def _write_outputs(
                 [name for name in formats if name not in early and name not in beside],
                 document_text(document, blind_text),
             )
+            bundles: list[list[str]] = []  # the late writers each forked process writes, in turn
+            here: list[str] = []  # and the ones this process writes after them
             if not parallel:
                 run_tasks([tasks[name] for name in late], 1)  # in order, the first failure raised
-            # The longest late writer (the HTML) forks even while an early child still draws the
-            # PNG: this process only has the JSON left, so three processes share two cores for
-            # a moment instead of the HTML waiting for the JSON (0.1 s of an edited 1,000-clip
-            # build; measured with benchmarks/bench_server.py).
-            forked = sorted(late, key=_WRITER_ORDER.index)[: min(slots, len(late) - 1)] if parallel else []
-            with Children([tasks[name] for name in forked], len(forked)) as rest:
+            elif known:
+                here, *bundles = _balanced(late, slots + 1)
+            else:
+                # The longest late writer (the HTML) forks even while an early child still draws
+                # the PNG (a build whose maps took long): this process only has the JSON left, so
+                # three processes share two cores for a moment instead of the HTML waiting.
+                forked = sorted(late, key=_WRITER_ORDER.index)[: min(slots, len(late) - 1)]
+                bundles = [[name] for name in forked]
+                here = [name for name in late if name not in forked]
+            bundles = [bundle for bundle in bundles if bundle]
+            in_turn = [
+                functools.partial(_write_in_turn, [(n, tasks[n]) for n in bundle]) for bundle in bundles
+            ]
+            with Children(in_turn, len(in_turn)) as rest:
                 # What waited for the map's workers and has not been written yet (the USD,
                 # when the maps were ready at once): here, beside the late children.
                 meanwhile()
-                for name in [name for name in late if name not in forked] if parallel else []:
+                for name in here:
                     try:
                         tasks[name]()
                     except Exception as error:  # weighed against the forked writers' errors below
                         errors[formats.index(name)] = error
                         break  # a serial build would not have written the next ones either
-                errors |= {formats.index(forked[i]): error for i, error in rest.wait().items()}
+                for index, failure in rest.wait().items():
+                    errors[formats.index(getattr(failure, _FAILED_WRITER, bundles[index][0]))] = failure
             errors |= {formats.index(started[i]): error for i, error in children.wait().items()}
         if errors:
             raise errors[min(errors)]
@@ -525,9 +546,38 @@ def document_text(document: BlendSpaceDocument, blind_text: str | None = None) -
 # do): with --jobs N they may be written (in forked processes) while the foot-skate map is computed.
 # `tests/test_forked_writers.py` checks that their bytes do not depend on it.
 _WITHOUT_BLEND_QUALITY = frozenset({"png", "usd"})
-# The writers from the longest to the shortest (PNG ~1 s, HTML ~0.4 s, USD ~0.3 s on 1,000 clips):
-# in parallel, the longest starts first so the others fit beside it.
-_WRITER_ORDER = ("png", "html", "usd", "json")
+# The writers from the longest to the shortest on 1,000 clips (HTML 0.2 s, PNG 0.15 s, USD 0.05 s,
+# JSON 0.03 s in the build's own process; a forked writer takes 20-40 % more): in parallel, the
+# longest forks so the others fit beside it. Of the ones that may start early, the PNG goes first.
+_WRITER_ORDER = ("html", "png", "usd", "json")
+_EARLY_ORDER = ("png", "usd")
+# What each writer costs, relative to the others (the times above), to share them out (`_balanced`).
+_WRITER_COST = {"html": 4.0, "png": 4.0, "usd": 1.5, "json": 1.0}
+_FAILED_WRITER = "blendspace_writer"  # set on the error of a writer that failed in `_write_in_turn`
+
+
+def _balanced(names: Sequence[str], processes: int) -> list[list[str]]:
+    """``names`` shared out among ``processes`` (the first is the build's own): each writer, the
+    longest first, to the process with the least to do so far; each process's in ``names``' order."""
+    loads = [0.0] * processes
+    shares: list[list[str]] = [[] for _ in range(processes)]
+    for name in sorted(names, key=_WRITER_ORDER.index):
+        least = loads.index(min(loads))
+        shares[least].append(name)
+        loads[least] += _WRITER_COST.get(name, 1.0)
+    return [sorted(share, key=list(names).index) for share in shares]
+
+
+def _write_in_turn(writers: Sequence[tuple[str, Callable[[], None]]]) -> None:
+    """Run ``writers`` in order, stopping at the first failure (as a serial build would); its error
+    names the writer (`_FAILED_WRITER`), for the parent to weigh it in the order of `formats`."""
+    for name, write in writers:
+        try:
+            write()
+        except BaseException as error:
+            with contextlib.suppress(Exception):
+                setattr(error, _FAILED_WRITER, name)
+            raise
 
 
 def _write_one(
@@ -827,6 +877,8 @@ def build(
     fix: bool = True,
 ) -> BuildResult:
     early: EarlyQuality | None = None
+    # The samples' documents are made while the placeholder simulations run in other processes.
+    prepared = PreparedSamples(lambda final: output_dir(final, out))
 
     def start_early(placed: BlendSpace) -> None:
         # Without fixes the placed samples are the final ones: their blend quality maps can be
@@ -842,18 +894,24 @@ def build(
     try:
         # With fixes on, placeholders are checked on the space the fix loop leaves (`apply_fixes`).
         space = analyse(
-            manifest, jobs=jobs, progress=progress, converge=not fix, on_placed=start_early, out=out
+            manifest,
+            jobs=jobs,
+            progress=progress,
+            converge=not fix,
+            on_placed=start_early,
+            out=out,
+            while_converging=prepared.prepare,
         )
         fixes = FixState()
         layer_fixes: dict[str, FixState] = {}
         if fix:
-            space, fixes = apply_fixes(space, jobs=jobs)
+            space, fixes = apply_fixes(space, jobs=jobs, while_converging=prepared.prepare)
             for layer in space.layer_spaces:  # a beta layer is a blend space: its own `fixes:` apply
                 if isinstance(layer, BetaSpace):
                     layer.space, layer_fixes[layer.name] = apply_fixes(layer.space, jobs=jobs)
         out_dir = output_dir(space, out)
         formats = list(dict.fromkeys(space.manifest.model.output.formats))
-        document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes, jobs, early)
+        document, written = write_outputs(space, out_dir, formats, fixes, layer_fixes, jobs, early, prepared)
     finally:
         if early is not None:
             early.stop()

@@ -53,13 +53,18 @@ PARALLEL_FROM = 300
 Key = tuple[object, ...]
 
 
-def converge_placeholders(space: BlendSpace, jobs: int = 1) -> None:
+def converge_placeholders(
+    space: BlendSpace, jobs: int = 1, meanwhile: Callable[[BlendSpace], None] | None = None
+) -> None:
     """Check every suggested placeholder of ``space`` by simulation; move or drop the bad ones.
 
     ``jobs`` > 1: when a simulation is needed, the ones the search would make next if this one
     failed are made at the same time in forked processes (`_Trials`): the search then finds them
     done when it gets there. It still makes the same trials in the same order, so the outcome is
-    the serial one."""
+    the serial one.
+    ``meanwhile``: work on ``space`` that does not depend on its findings (it must not raise),
+    done by this process while the first simulations run in forked ones (`build` makes the
+    samples' documents there); not called when nothing is simulated in parallel."""
     if len(space.samples) < 3 or not any(
         p.priority == "suggested" for d in space.diagnostics for p in d.placeholders
     ):
@@ -67,7 +72,7 @@ def converge_placeholders(space: BlendSpace, jobs: int = 1) -> None:
     before = _keys(space.diagnostics)
     coverage = _coverage(space)
     budget = [min(MAX_SIMULATIONS, BUDGET // max(len(space.samples), 1))]
-    trials = _Trials(space, jobs if len(space.samples) >= PARALLEL_FROM else 1)
+    trials = _Trials(space, jobs if len(space.samples) >= PARALLEL_FROM else 1, meanwhile)
 
     changed: list[Diagnostic] = []
     for diagnostic in space.diagnostics:
@@ -132,8 +137,11 @@ class _Trials:
     """The simulations of one search, remembered by position, and the suggested placeholders in
     the order the search visits them (`next_mark` counts them off)."""
 
-    def __init__(self, space: BlendSpace, jobs: int) -> None:
+    def __init__(
+        self, space: BlendSpace, jobs: int, meanwhile: Callable[[BlendSpace], None] | None = None
+    ) -> None:
         self.space, self.jobs = space, jobs
+        self.meanwhile = meanwhile if jobs > 1 else None  # done once, beside the first batch
         # A too-close marker is where the cluster's merge would go: it replaces the members.
         self.marks = [
             (d, mark, d.clips if d.rule == "too-close" else ())
@@ -191,7 +199,10 @@ class _Trials:
                 functools.partial(_trial, self.space, *batch[0])
             ]
             tasks += [functools.partial(_ahead, self.space, *trial) for trial in batch[1:]]
-            for trial, result in zip(batch, results_of(tasks, self.jobs), strict=True):
+            meanwhile = None
+            if self.meanwhile is not None and len(tasks) > 1:
+                meanwhile, self.meanwhile = functools.partial(self.meanwhile, self.space), None
+            for trial, result in zip(batch, results_of(tasks, self.jobs, meanwhile), strict=True):
                 if result is not None:  # a look-ahead that failed: the search decides if it matters
                     self.done[_trial_key(*trial)] = result
         return self.done[key]

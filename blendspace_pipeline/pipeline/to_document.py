@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from blendspace_pipeline import __version__
@@ -81,6 +82,47 @@ def _sample_doc(sample: Sample, out_dir: Path, *, events: bool = True) -> Sample
         contacts=m.contacts if events else None,
         markers=_markers(m.contacts, m.features["duration"]) if events else None,
     )
+
+
+class PreparedSamples:
+    """Sample documents made ahead of `to_document`, while this process would otherwise wait for
+    the placeholder simulations (`converge_placeholders`' ``meanwhile``): a sample's document
+    does not depend on the findings. `to_document` takes each one whose sample still reads the
+    same (the same objects and values, the same output folder and working folder), and makes the
+    others (a fix's generated clip gets its file name only when the outputs are written)."""
+
+    def __init__(self, out_dir_of: Callable[[BlendSpace], Path]) -> None:
+        self.out_dir_of = out_dir_of
+        self.docs: dict[int, tuple[_SampleKey, SampleDoc]] = {}
+
+    def prepare(self, space: BlendSpace) -> None:
+        try:
+            out_dir = self.out_dir_of(space)
+            self.docs = {id(s): (_sample_key(s, out_dir), _sample_doc(s, out_dir)) for s in space.samples}
+        except Exception:  # an optimisation only: `to_document` makes them, and reports what fails
+            self.docs = {}
+
+    def sample_doc(self, sample: Sample, out_dir: Path) -> SampleDoc:
+        made = self.docs.pop(id(sample), None)
+        if made is not None and _same_key(made[0], _sample_key(sample, out_dir)):
+            return made[1]
+        return _sample_doc(sample, out_dir)
+
+
+# What `_sample_doc` reads: the objects themselves (compared by identity, and held, so that no new
+# object takes a freed one's id) and the values (with the output and working folders).
+_SampleKey = tuple[tuple[object, ...], tuple[object, ...]]
+
+
+def _sample_key(sample: Sample, out_dir: Path) -> _SampleKey:
+    clip = sample.clip
+    objects = (sample, clip, clip.measurement, clip.entry)
+    values = (clip.source, clip.time_range, sample.position, sample.measured, sample.generated, sample.fix)
+    return objects, (*values, out_dir, os.getcwd())
+
+
+def _same_key(made: _SampleKey, now: _SampleKey) -> bool:
+    return all(a is b for a, b in zip(made[0], now[0], strict=True)) and made[1] == now[1]
 
 
 def _used_range(clip: MeasuredClip) -> list[float] | None:
@@ -204,13 +246,19 @@ def _axis_docs(space: BlendSpace) -> list[AxisDoc]:
     ]
 
 
-def to_document(space: BlendSpace, out_dir: Path) -> BlendSpaceDocument:
+def to_document(
+    space: BlendSpace, out_dir: Path, prepared: PreparedSamples | None = None
+) -> BlendSpaceDocument:
+    """``prepared``: sample documents made ahead (`PreparedSamples`)."""
     model = space.manifest.model
     return BlendSpaceDocument(
         schema_version=1,
         name=space.name,
         axes=_axis_docs(space),
-        samples=[_sample_doc(s, out_dir) for s in space.samples],
+        samples=[
+            prepared.sample_doc(s, out_dir) if prepared is not None else _sample_doc(s, out_dir)
+            for s in space.samples
+        ],
         triangles=[list(t) for t in space.triangles],
         diagnostics=[diagnostic_doc(d, out_dir) for d in space.diagnostics],
         placeholders=[
