@@ -422,8 +422,9 @@ def _write_outputs(
         # When the maps are already made (an edit: their child ran beside the rules), the blend
         # quality is known and no writer needs to start early: the longest ones fork (the HTML
         # first) and this process writes the rest, the PNG too. One child fewer, and the PNG
-        # drawn here instead of in a third process on two cores: an edited 1,000-clip build's
-        # writers took 0.27 s instead of 0.4 s (measured with benchmarks/bench_edit_ab.py).
+        # drawn here instead of in a third process on two cores: in traces of served 1,000-clip
+        # edits the writers took 0.27-0.31 s instead of 0.34-0.4 s (paired runs of
+        # benchmarks/bench_edit_ab.py did not tell the whole edit from noise).
         parallel = jobs > 1 and can_fork()
         slots = jobs - 1 if parallel else 0
         known = parallel and maps is not None and maps.ready()
