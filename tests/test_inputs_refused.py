@@ -163,3 +163,43 @@ def test_mirror_tokens_that_pair_no_joints_skip_the_mirror_and_say_why(
     assert not [s for s in doc["samples"] if s["fix"] == "missing-opposite"]
     skipped = [d["message"] for d in doc["diagnostics"] if d["rule"] == "fix-skipped"]
     assert any("skeleton.mirror {left: Foo, right: Bar} pairs no joints of walk_left" in m for m in skipped)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["build", ""],
+        ["check", ""],
+        ["build", "{m}", "--out", ""],
+        ["build", "{m}", "--library", ""],
+        ["eval", "", "--at", "0,0"],
+        ["eval", "{d}", "--points", ""],
+        ["export", "{d}", "--engine", "godot", "--out", ""],
+        ["index", "{c}", "--store", ""],
+        ["index", "", "--store", "{s}"],
+        ["suggest", "{m}", "--library", ""],
+    ],
+)
+def test_an_empty_path_argument_is_refused_not_taken_for_the_working_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], args: list[str]
+) -> None:
+    """`--out "$OUT"` with OUT unset: before, the outputs (or a library index) went into the
+    working folder, the project's own. Now exit 2 naming the argument, and nothing is written."""
+    manifest = _project(tmp_path / "p")
+    monkeypatch.chdir(tmp_path / "p")
+    before = sorted(p.name for p in (tmp_path / "p").iterdir())
+    names = {"m": str(manifest), "d": "t.blendspace.json", "c": "clips", "s": str(tmp_path / "store")}
+    assert main([a.format(**names) for a in args]) == 2
+    assert "is empty (an unset variable?)" in capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "p").iterdir()) == before
+
+
+def test_a_folder_given_as_a_document_or_clip_is_called_a_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["eval", str(tmp_path), "--at", "0,0"]) == 2
+    assert "not a regular file (a folder)" in capsys.readouterr().err
+    from blendspace_pipeline.readers.limits import check_regular
+
+    with pytest.raises(InputError, match=r"not a regular file \(a folder\)"):
+        check_regular(tmp_path, what="clip")

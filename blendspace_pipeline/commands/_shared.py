@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from blendspace_pipeline.checks.output_formats import FORMATS, RuleInfo, render
 from blendspace_pipeline.checks.trust import NO_PLUGINS_VARIABLE
+from blendspace_pipeline.commands._arguments import given, given_path
 from blendspace_pipeline.cpus import JOBS_VARIABLE, auto_jobs, capped_processes
 from blendspace_pipeline.diagnostics import Diagnostic
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, InputError
@@ -90,7 +91,9 @@ def engine_rules() -> dict[str, RuleInfo]:
 
 
 def add_common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("manifests", nargs="+", type=Path, metavar="MANIFEST", help="manifest YAML file(s)")
+    parser.add_argument(
+        "manifests", nargs="+", type=given_path, metavar="MANIFEST", help="manifest YAML file(s)"
+    )
     parser.add_argument(
         "--format", choices=FORMATS, default="text", help="how to print diagnostics (default: text)"
     )
@@ -112,6 +115,7 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--library",
+        type=given,
         metavar="STORE",
         help="read measurements from a store written by `blendspace index` (a folder or fsspec URL) "
         f"before measuring a clip; same as {LIBRARY_VARIABLE}=STORE",

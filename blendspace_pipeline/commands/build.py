@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from blendspace_pipeline.commands._arguments import given_path
 from blendspace_pipeline.commands._shared import (
     add_common,
     command_environment,
@@ -26,7 +27,7 @@ HELP = "build blend-space assets (JSON, USD, HTML report, PNG) from manifest(s)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_common(parser)
-    parser.add_argument("--out", type=Path, help="output folder (default: the manifest's output.dir)")
+    parser.add_argument("--out", type=given_path, help="output folder (default: the manifest's output.dir)")
     parser.add_argument("--no-fix", action="store_true", help="do not apply automatic fixes")
 
 

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from blendspace_pipeline.commands._arguments import given_path
 from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
 from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC, SYNC_MODES, SyncMode, playback_rates
 from blendspace_pipeline.space.document import BlendSpaceDocument
@@ -43,12 +44,14 @@ _AT_HINT = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("blendspace", type=Path, metavar="BLENDSPACE.json", help="a built N.blendspace.json")
+    parser.add_argument(
+        "blendspace", type=given_path, metavar="BLENDSPACE.json", help="a built N.blendspace.json"
+    )
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--at", metavar="x=..,y=..", help="the query point, in axis units")
     where.add_argument(
         "--points",
-        type=Path,
+        type=given_path,
         metavar="FILE.csv",
         help="evaluate every 'x,y' row of this CSV file (axis units; '-' reads stdin) in one batch",
     )

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from blendspace_pipeline.commands._arguments import given, given_path
 from blendspace_pipeline.errors import EXIT_OK, InputError
 from blendspace_pipeline.exporters import ENGINES, Export, ExportContext, adapter, export, write_export
 from blendspace_pipeline.space.document import BlendSpaceDocument
@@ -24,10 +25,13 @@ HELP = "write the blend space for Godot (.tres), Unity (.controller) or Unreal (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("blendspace", type=Path, metavar="BLENDSPACE.json", help="a built N.blendspace.json")
+    parser.add_argument(
+        "blendspace", type=given_path, metavar="BLENDSPACE.json", help="a built N.blendspace.json"
+    )
     parser.add_argument("--engine", required=True, choices=ENGINES, help="target engine")
     parser.add_argument(
         "--out",
+        type=given,
         # A string, not a Path: Path("ex/") drops the trailing separator that says "a folder".
         metavar="PATH",
         help="output file, or a folder (an existing one, or any path ending in /) for the default name "
@@ -35,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--unity-project",
-        type=Path,
+        type=given_path,
         metavar="DIR",
         help="Unity project whose .meta files give the source clips' GUIDs (unity only)",
     )

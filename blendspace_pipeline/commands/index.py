@@ -7,8 +7,8 @@ import argparse
 import os
 import sys
 import time
-from pathlib import Path
 
+from blendspace_pipeline.commands._arguments import given, given_path
 from blendspace_pipeline.cpus import capped_processes
 from blendspace_pipeline.errors import EXIT_DIAGNOSTICS, EXIT_OK, UsageError
 
@@ -16,10 +16,15 @@ HELP = "measure a whole mocap library into a shared store of features (on Dask)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("libraries", nargs="+", type=Path, metavar="LIBRARY_DIR", help="folder(s) of clips")
-    parser.add_argument("--store", required=True, help="store location: a folder or any fsspec URL")
+    parser.add_argument(
+        "libraries", nargs="+", type=given_path, metavar="LIBRARY_DIR", help="folder(s) of clips"
+    )
+    parser.add_argument(
+        "--store", required=True, type=given, help="store location: a folder or any fsspec URL"
+    )
     parser.add_argument(
         "--scheduler",
+        type=given,
         metavar="ADDRESS",
         help="a Dask scheduler (default: DASK_SCHEDULER_ADDRESS, else an embedded local cluster)",
     )

@@ -19,15 +19,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from blendspace_pipeline.commands._arguments import given, given_path
 from blendspace_pipeline.errors import EXIT_OK
 
 HELP = "propose library clips (from `blendspace index`) that fill a manifest's placeholders"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("manifest", type=Path, metavar="MANIFEST", help="manifest YAML file")
+    parser.add_argument("manifest", type=given_path, metavar="MANIFEST", help="manifest YAML file")
     parser.add_argument(
-        "--library", required=True, metavar="STORE", help="a store written by `blendspace index`"
+        "--library", required=True, type=given, metavar="STORE", help="a store written by `blendspace index`"
     )
     parser.add_argument(
         "--count", type=_count, default=3, metavar="N", help="candidates per placeholder (default 3)"

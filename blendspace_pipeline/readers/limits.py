@@ -91,8 +91,9 @@ def check_regular(path: Path, *, what: str = "file") -> None:
 def _check_info(info: os.stat_result, path: Path, what: str, limit: int) -> None:
     """Raise unless ``info`` is a regular file of at most ``limit`` bytes."""
     if not stat.S_ISREG(info.st_mode):
+        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "a device, FIFO or socket"
         raise ClipReadError(
-            f"the {what} is not a regular file (a device, FIFO or socket)",
+            f"the {what} is not a regular file ({kind})",
             path=path,
             hint="point the manifest at the clip file itself",
         )

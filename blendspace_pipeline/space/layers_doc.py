@@ -102,9 +102,8 @@ def read_document(path: Path) -> BlendSpaceDocument:
         # A regular file of bounded size: /dev/zero or a FIFO would be read until memory runs out.
         info = path.stat()
         if not stat.S_ISREG(info.st_mode):
-            raise InputError(
-                "the blend-space JSON is not a regular file (a device, FIFO or socket)", path=path, hint=hint
-            )
+            kind = "a folder" if stat.S_ISDIR(info.st_mode) else "a device, FIFO or socket"
+            raise InputError(f"the blend-space JSON is not a regular file ({kind})", path=path, hint=hint)
         if info.st_size > MAX_DOCUMENT_BYTES:
             raise InputError(
                 f"the blend-space JSON is {info.st_size / 1024**2:.0f} MB, over the {MAX_DOCUMENT_BYTES // 1024**2} MB "
