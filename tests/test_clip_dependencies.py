@@ -126,3 +126,25 @@ def test_formats_of_one_file_have_no_dependencies(tmp_path: Path) -> None:
     write_gltf_clip(generate(OTHERS[0]), tmp_path / "idle.glb", meters_per_unit=1.0, up_axis="y")
     for name in ("idle.usda", "idle.glb", "walk.bvh"):
         assert file_dependencies(tmp_path / name) == []
+
+
+@pytest.mark.parametrize("kind", ["usd", "gltf"])
+def test_a_reference_that_is_a_symlink_loop_is_bad_input_not_a_crash(
+    kind: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A sublayer or buffer path that is a symlink pointing at itself: `Path.resolve` raises
+    RuntimeError (Python 3.11), which escaped as an internal error (exit 3)."""
+    (tmp_path / "clips").mkdir()
+    for spec in OTHERS:
+        write_usd_clip(
+            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    dependency = _usd_with_a_layer(tmp_path, 1.4) if kind == "usd" else _gltf_with_a_buffer(tmp_path, 1.4)
+    dependency.unlink()
+    dependency.symlink_to(dependency.name)  # points at itself
+    (tmp_path / "manifest.yaml").write_text(
+        "schema_version: 1\nname: t\nclips:\n  - path: clips/*\n", encoding="utf-8"
+    )
+    assert main(["check", str(tmp_path / "manifest.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert "walk." in err and "Traceback" not in err and "internal error" not in err.lower()

@@ -123,7 +123,14 @@ def allowed_roots(clip_path: Path, project: Path | None = None) -> list[Path]:
 
 def confined(clip_path: Path, reference: str | Path, roots: Sequence[Path], *, what: str) -> Path:
     """``reference`` (relative to the clip's folder) resolved, if it stays inside ``roots``."""
-    target = (clip_path.parent / reference).resolve()
+    try:
+        target = (clip_path.parent / reference).resolve()
+    except (RuntimeError, OSError, ValueError) as error:  # a symlink loop (RuntimeError before 3.13), a NUL
+        raise ClipReadError(
+            f"cannot follow the {what} {str(reference)!r}: {error}",
+            path=clip_path,
+            hint="a symlink there points back at itself; point it at the file",
+        ) from None
     if not any(target == root or target.is_relative_to(root) for root in roots):
         raise ClipReadError(
             f"the {what} {str(reference)!r} lies outside the project ({target})",
