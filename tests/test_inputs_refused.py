@@ -203,3 +203,21 @@ def test_a_folder_given_as_a_document_or_clip_is_called_a_folder(
 
     with pytest.raises(InputError, match=r"not a regular file \(a folder\)"):
         check_regular(tmp_path, what="clip")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_eval_points_from_a_device_or_a_fifo_are_refused_without_reading_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--points /dev/zero` was read until memory ran out, and a FIFO with no writer waited forever."""
+    manifest = _project(tmp_path / "p")
+    assert main(["build", str(manifest), "--no-fix", "--out", str(tmp_path / "out")]) in (0, 1)
+    fifo = tmp_path / "points.csv"
+    os.mkfifo(fifo)
+    for points in (fifo, Path("/dev/zero")):
+        if not points.exists():
+            continue
+        capsys.readouterr()
+        assert main(["eval", str(tmp_path / "out" / "t.blendspace.json"), "--points", str(points)]) == 2
+        err = capsys.readouterr().err
+        assert "not a regular file (a device, FIFO or socket)" in err and "give a CSV file" in err

@@ -25,6 +25,7 @@ import numpy as np
 from blendspace_pipeline.commands._arguments import given_path
 from blendspace_pipeline.errors import EXIT_OK, InputError, UsageError
 from blendspace_pipeline.motion.blend_model import DEFAULT_SYNC, SYNC_MODES, SyncMode, playback_rates
+from blendspace_pipeline.readers.limits import read_regular_file
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.evaluate import (
     DEFAULT_CULL,
@@ -134,7 +135,12 @@ def read_points(path: Path, doc: BlendSpaceDocument) -> np.ndarray:
     order: a header ``speed,turn_rate`` had been skipped unread, and every row evaluated at the
     swapped point. A header that names no axis is an error, not skipped."""
     try:
-        text = sys.stdin.read() if str(path) == "-" else path.read_text(encoding="utf-8")
+        if str(path) == "-":
+            text = sys.stdin.read()
+        else:  # a regular file, opened without blocking (`--points /dev/zero` read until memory ran out)
+            text = read_regular_file(path, what="points file").decode("utf-8")
+    except InputError as error:
+        raise InputError(error.message, path=path, hint="give a CSV file of x,y rows") from None
     except (OSError, UnicodeDecodeError) as error:
         raise InputError(
             f"cannot read points: {error}", path=path, hint="give a CSV file of x,y rows"

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import stat
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -98,24 +97,14 @@ def read_document(path: Path) -> BlendSpaceDocument:
     or a hand edit that breaks the layout) becomes an `InputError` naming the file and the key.
     """
     hint = "pass the N.blendspace.json that `blendspace build` wrote (in the manifest's output dir)"
+    # A regular file of bounded size, opened without blocking: /dev/zero or a FIFO would be read
+    # until memory runs out, or wait forever.
+    from blendspace_pipeline.readers.limits import read_regular_file
+
     try:
-        # A regular file of bounded size: /dev/zero or a FIFO would be read until memory runs out.
-        info = path.stat()
-        if not stat.S_ISREG(info.st_mode):
-            kind = "a folder" if stat.S_ISDIR(info.st_mode) else "a device, FIFO or socket"
-            raise InputError(f"the blend-space JSON is not a regular file ({kind})", path=path, hint=hint)
-        if info.st_size > MAX_DOCUMENT_BYTES:
-            raise InputError(
-                f"the blend-space JSON is {info.st_size / 1024**2:.0f} MB, over the {MAX_DOCUMENT_BYTES // 1024**2} MB "
-                "a document of 100,000 samples takes",
-                path=path,
-                hint=hint,
-            )
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise InputError(
-            f"cannot read the blend-space JSON: {error.strerror or error}", path=path, hint=hint
-        ) from None
+        text = read_regular_file(path, what="blend-space JSON", limit=MAX_DOCUMENT_BYTES).decode("utf-8")
+    except InputError as error:
+        raise InputError(error.message, path=path, hint=hint) from None
     except UnicodeDecodeError:
         raise InputError("not a blend-space JSON: the file is not UTF-8 text", path=path, hint=hint) from None
     try:
