@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -221,3 +222,31 @@ def test_eval_points_from_a_device_or_a_fifo_are_refused_without_reading_them(
         assert main(["eval", str(tmp_path / "out" / "t.blendspace.json"), "--points", str(points)]) == 2
         err = capsys.readouterr().err
         assert "not a regular file (a device, FIFO or socket)" in err and "give a CSV file" in err
+
+
+def test_a_plugin_module_keeps_the_folder_it_adds_to_the_path_for_its_rules(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A studio plugin that puts its vendored folder on `sys.path` at import and imports from it
+    in `check`: the loader put back the whole path it had saved, dropping the plugin's folder, so
+    the rule crashed. The working folder is still left out while the plugin imports."""
+    site = tmp_path / "site"
+    (site / "_vendor").mkdir(parents=True)
+    (site / "_vendor" / "studio_vendored_helper.py").write_text("WORD = 'vendored'\n", encoding="utf-8")
+    (site / "studio_vendoring_rules.py").write_text(
+        "import os, sys\n"
+        "sys.path.insert(0, os.path.join(os.path.dirname(__file__), '_vendor'))\n"
+        "from blendspace_pipeline.api import Diagnostic, Rule\n\n\n"
+        "class Vendoring(Rule):\n    slug = 'studio-vendoring'\n    code = 'ST900'\n    severity = 'info'\n    summary = 'vendored'\n\n"
+        "    def check(self, space):\n"
+        "        import studio_vendored_helper\n\n"
+        "        yield self.report(f'helper says {studio_vendored_helper.WORD}')\n",
+        encoding="utf-8",
+    )
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.syspath_prepend("")  # as `python -m` starts: taken out for the import, put back
+    manifest = _project(tmp_path / "p", extra="plugins: [studio_vendoring_rules]\n")
+    assert main(["check", str(manifest)]) in (0, 1)
+    out = capsys.readouterr().out
+    assert "helper says vendored" in out and "rule-crashed" not in out
+    assert sys.path[0] == "" and str(site / "_vendor") in sys.path

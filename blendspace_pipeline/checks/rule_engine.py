@@ -230,9 +230,12 @@ def _load_module_name(name: str, loaded: LoadedRules, origin: str) -> None:
     which `python -m blendspace_pipeline` puts first on `sys.path` (a manifest could run a file
     from outside its project there, and the `blendspace` script would not find the same one)."""
     here = {"", os.getcwd()}
-    saved = list(sys.path)
+    # Only the working folder's entries are taken out, and only they are put back: what the
+    # plugin adds while it imports (its vendored folder) stays, for the imports its rules make later.
+    removed = [(i, e) for i, e in enumerate(sys.path) if e in here and not _installed_here(e)]
     try:
-        sys.path[:] = [entry for entry in sys.path if entry not in here or _installed_here(entry)]
+        for index, _ in reversed(removed):
+            del sys.path[index]
         with contextlib.redirect_stdout(sys.stderr):  # a plugin's print must not corrupt --format json
             module = importlib.import_module(name)
     except KeyboardInterrupt:
@@ -241,7 +244,8 @@ def _load_module_name(name: str, loaded: LoadedRules, origin: str) -> None:
         loaded.problems.append(_import_failure(origin, error))
         return
     finally:
-        sys.path[:] = saved
+        for index, entry in removed:
+            sys.path.insert(min(index, len(sys.path)), entry)
     loaded.add_module(module, origin)
 
 
