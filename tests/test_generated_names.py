@@ -4,6 +4,7 @@ source is the file of its own clip (`motion.file_names.unique_stems`)."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -121,3 +122,27 @@ def test_bvh_asked_by_name_is_written_for_clips_made_from_other_formats(
     [clip] = read_clips(out / "clips" / "spin_right.bvh")
     assert measure(clip, RigSettings()).features["turn_rate"] == pytest.approx(-90.0, abs=1.0)
     assert (out / "clips" / "spin_right.usda").exists()  # the sample's source, readable beside its set
+
+
+def test_a_style_layers_glob_does_not_read_a_blend_space_asset_as_a_take(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The asset filter sat in the clip list's own step: a style layer's `styles/*.usda` still read
+    a blend space's `N.blendspace.usda` lying there as a take."""
+    project = tmp_path / "p"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "sample_project", project)
+    manifest = project / "manifest.yaml"
+    text = manifest.read_text(encoding="utf-8")
+    assert "clips: [styles/limp_fwd.usda, styles/limp_bwd.usda]" in text
+    manifest.write_text(
+        text.replace("clips: [styles/limp_fwd.usda, styles/limp_bwd.usda]", "clips: [styles/limp_*.usda]"),
+        encoding="utf-8",
+    )
+    assert main(["build", str(manifest), "--out", str(tmp_path / "out"), "--no-fix"]) in (0, 1)
+    shutil.copy(
+        tmp_path / "out" / "locomotion.blendspace.usda", project / "styles" / "limp_space.blendspace.usda"
+    )
+    capsys.readouterr()
+    assert main(["check", str(manifest)]) in (0, 1)
+    out = capsys.readouterr()
+    assert "limp_space" not in out.err + out.out and "UsdSkel" not in out.err + out.out

@@ -217,6 +217,7 @@ def _in_other_case(path: Path) -> Path | None:
 # A glob visits at most this many folder entries: a clip library is thousands of files, a symlink
 # farm or the root of a disk is millions.
 MAX_GLOB_ENTRIES = 200_000
+BLEND_SPACE_SUFFIXES = (".blendspace.usda", ".blendspace.usd", ".blendspace.usdc")  # the outputs
 MAX_CLIP_FILES = 10_000
 
 
@@ -243,7 +244,13 @@ def _glob(loaded: LoadedManifest, text: str, key: KeyPath) -> list[Path]:
             "narrow the glob to the clips of this blend space",
         )
     readable = set(supported_suffixes())
-    clips = [p for p in files if p.suffix.lower() in readable]
+    # A blend-space asset (`N.blendspace.usda`, this tool's or another manifest's) is no take: a
+    # `**/*.usda` glob (of `clips:` or a style layer) reached one where the outputs sit under the
+    # manifest's folder but not where this command looks for them (`build --out .`, then
+    # `check`), and the run failed.
+    clips = [
+        p for p in files if p.suffix.lower() in readable and not p.name.lower().endswith(BLEND_SPACE_SUFFIXES)
+    ]
     if not clips:
         _fail(
             loaded,

@@ -19,8 +19,6 @@ CURRENT = "current"  # OUT/.blendspace/<space>/current -> the published generati
 # placed clip is a hard link to the generation's file, so an edit in place changes both; this
 # record is what tells a later build that the clip is no longer the one it placed.
 PLACED = ".placed.json"
-# The blend-space assets every build writes (`writers.usd_blendspace`), never clips.
-BLEND_SPACE_SUFFIXES = (".blendspace.usda", ".blendspace.usd", ".blendspace.usdc")
 
 
 def output_folder(loaded: LoadedManifest, out: Path | None) -> Path:
@@ -63,14 +61,6 @@ def authored(
     for f in files:
         if id(f.entry) not in glob_entry:
             glob_entry[id(f.entry)] = is_glob_entry(loaded, f.entry)
-    # A blend-space asset (`N.blendspace.usda`, this tool's or another manifest's) is no take: a
-    # `**/*.usda` glob reached one where the outputs sit under the manifest's folder but not
-    # where this command looks for them (`build --out .`, then `check`), and the run failed.
-    files = [
-        f
-        for f in files
-        if not (glob_entry[id(f.entry)] and f.path.name.lower().endswith(BLEND_SPACE_SUFFIXES))
-    ]
     globbed = {i for i, f in enumerate(files) if glob_entry[id(f.entry)]}
     if not globbed:
         return files
