@@ -136,17 +136,17 @@ def test_without_a_font_the_server_warms_nothing_and_each_command_warns(
 def test_sample_documents_made_ahead_are_the_ones_to_document_makes(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """`PreparedSamples`: made while the simulations run, taken only while the sample reads the
+    """`SampleDocsAhead`: made while the simulations run, taken only while the sample reads the
     same; a sample that moved, a clip given its file name later, another output or working folder
     get a new document. The document is the same either way."""
     from dataclasses import replace
 
     from blendspace_pipeline.pipeline.analysis import analyse
-    from blendspace_pipeline.pipeline.to_document import PreparedSamples, to_document
+    from blendspace_pipeline.pipeline.to_document import SampleDocsAhead, to_document
 
     space = analyse(Path(__file__).resolve().parents[1] / "sample_project" / "manifest.yaml", converge=False)
     out = tmp_path / "out"
-    prepared = PreparedSamples(lambda _space: out)
+    prepared = SampleDocsAhead(lambda _space: out)
     prepared.prepare(space)
     made = {id(s): doc for s, (_, doc) in zip(space.samples, prepared.docs.values(), strict=True)}
     first, second, third = space.samples[:3]
@@ -171,7 +171,7 @@ def test_sample_documents_made_ahead_are_the_ones_to_document_makes(
     def refuses(_space: object) -> Path:
         raise ValueError("no output folder")
 
-    failing = PreparedSamples(refuses)
+    failing = SampleDocsAhead(refuses)
     failing.prepare(space)  # an optimisation: never an error of its own
     assert failing.docs == {}
     assert to_document(space, out, failing).model_dump_json() == to_document(space, out).model_dump_json()

@@ -406,13 +406,13 @@ def test_a_build_makes_its_sample_documents_beside_the_simulations_and_writes_th
 
     monkeypatch.setattr(placeholders, "PARALLEL_FROM", 0)  # the 13-clip sample: simulate side by side
     prepared: list[int] = []
-    real = to_document.PreparedSamples.prepare
+    real = to_document.SampleDocsAhead.prepare
 
-    def counted(self: to_document.PreparedSamples, space: object) -> None:
+    def counted(self: to_document.SampleDocsAhead, space: object) -> None:
         prepared.append(os.getpid())
         real(self, space)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(to_document.PreparedSamples, "prepare", counted)
+    monkeypatch.setattr(to_document.SampleDocsAhead, "prepare", counted)
     sample = Path(__file__).resolve().parents[1] / "sample_project" / "manifest.yaml"
     for out, jobs, fixes in (("s", "1", False), ("p", "2", False), ("sf", "1", True), ("pf", "2", True)):
         args = ["build", str(sample), "--out", str(tmp_path / out), "--jobs", jobs]

@@ -74,7 +74,7 @@ from blendspace_pipeline.pipeline.own_outputs import (
     still_placed,
 )
 from blendspace_pipeline.pipeline.progress import Progress
-from blendspace_pipeline.pipeline.to_document import PreparedSamples, to_document
+from blendspace_pipeline.pipeline.to_document import SampleDocsAhead, to_document
 from blendspace_pipeline.report.atomic import verify_written
 from blendspace_pipeline.space.document import BlendSpaceDocument
 from blendspace_pipeline.space.model import BetaSpace, BlendSpace
@@ -315,12 +315,12 @@ def write_outputs(
     layer_fixes: dict[str, FixState] | None = None,
     jobs: int = 1,
     maps: EarlyQuality | None = None,
-    prepared: PreparedSamples | None = None,
+    prepared: SampleDocsAhead | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     """Write every output, or none: a file system refusal (the folder is a file, no permission,
     disk full) is bad input, exit 2, and leaves nothing behind. ``jobs``: processes for the
     foot-skate map's blends; ``maps``: the blend quality maps, already under way (`early_quality`);
-    ``prepared``: sample documents made ahead (`to_document.PreparedSamples`)."""
+    ``prepared``: sample documents made ahead (`to_document.SampleDocsAhead`)."""
     try:
         with _usd_errors_as_os_errors():
             return _write_outputs(
@@ -362,7 +362,7 @@ def _write_outputs(
     layer_fixes: dict[str, FixState],
     jobs: int = 1,
     maps: EarlyQuality | None = None,
-    prepared: PreparedSamples | None = None,
+    prepared: SampleDocsAhead | None = None,
 ) -> tuple[BlendSpaceDocument, list[Path]]:
     created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -420,15 +420,15 @@ def _write_outputs(
         # fork (the longest first) and this process writes what is left, in order.
         # A failure is raised as the serial order of `formats` would have raised it.
         # When the maps are already made (an edit: their child ran beside the rules), the blend
-        # quality is known and no writer needs to start early: the longest ones fork (the HTML
-        # first) and this process writes the rest, the PNG too. One child fewer, and the PNG
-        # drawn here instead of in a third process on two cores: in traces of served 1,000-clip
-        # edits the writers took 0.27-0.31 s instead of 0.34-0.4 s (paired runs of
-        # benchmarks/bench_edit_ab.py did not tell the whole edit from noise).
+        # quality is known and no writer needs to start early: the writers are shared out between
+        # this process and the children by their cost (`_balanced`: at --jobs 2, HTML and USD
+        # here, JSON and PNG in one child), instead of three processes on two cores: in traces
+        # of served 1,000-clip edits the writers took 0.27-0.31 s instead of 0.34-0.4 s (paired
+        # runs of benchmarks/bench_edit_ab.py did not tell the whole edit from noise).
         parallel = jobs > 1 and can_fork()
         slots = jobs - 1 if parallel else 0
         known = parallel and maps is not None and maps.ready()
-        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_EARLY_ORDER.index)
+        blind = sorted((n for n in formats if n in _WITHOUT_BLEND_QUALITY), key=_WRITER_ORDER.index)
         early, beside = (blind[:slots], blind[slots:]) if parallel and not known else ([], [])
         blind_text = document.model_dump_json(indent=2) + "\n" if early or beside else None
         started = plan(early, blind_text) if blind_text is not None else []
@@ -547,13 +547,11 @@ def document_text(document: BlendSpaceDocument, blind_text: str | None = None) -
 # do): with --jobs N they may be written (in forked processes) while the foot-skate map is computed.
 # `tests/test_forked_writers.py` checks that their bytes do not depend on it.
 _WITHOUT_BLEND_QUALITY = frozenset({"png", "usd"})
-# The writers from the longest to the shortest on 1,000 clips (HTML 0.2 s, PNG 0.15 s, USD 0.05 s,
-# JSON 0.03 s in the build's own process; a forked writer takes 20-40 % more): in parallel, the
-# longest forks so the others fit beside it. Of the ones that may start early, the PNG goes first.
-_WRITER_ORDER = ("html", "png", "usd", "json")
-_EARLY_ORDER = ("png", "usd")
-# What each writer costs, relative to the others (the times above), to share them out (`_balanced`).
+# What each writer costs, relative to the others, from the longest to the shortest (on 1,000 clips
+# in the build's own process HTML 0.2 s, PNG 0.15 s, USD 0.05 s, JSON 0.03 s; a forked writer
+# takes 20-40 % more): in parallel the longest start first, and `_balanced` shares them out.
 _WRITER_COST = {"html": 4.0, "png": 4.0, "usd": 1.5, "json": 1.0}
+_WRITER_ORDER = tuple(_WRITER_COST)
 _FAILED_WRITER = "blendspace_writer"  # set on the error of a writer that failed in `_write_in_turn`
 
 
@@ -879,7 +877,7 @@ def build(
 ) -> BuildResult:
     early: EarlyQuality | None = None
     # The samples' documents are made while the placeholder simulations run in other processes.
-    prepared = PreparedSamples(lambda final: output_dir(final, out))
+    prepared = SampleDocsAhead(lambda final: output_dir(final, out))
 
     def start_early(placed: BlendSpace) -> None:
         # Without fixes the placed samples are the final ones: their blend quality maps can be

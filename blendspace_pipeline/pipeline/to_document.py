@@ -84,9 +84,9 @@ def _sample_doc(sample: Sample, out_dir: Path, *, events: bool = True) -> Sample
     )
 
 
-class PreparedSamples:
-    """Sample documents made ahead of `to_document`, while this process would otherwise wait for
-    the placeholder simulations (`converge_placeholders`' ``meanwhile``): a sample's document
+class SampleDocsAhead:
+    """Sample documents made ahead of `to_document`, by this process while the placeholder
+    simulations run in forked ones (`converge_placeholders`' ``meanwhile``): a sample's document
     does not depend on the findings. `to_document` takes each one whose sample still reads the
     same (the same objects and values, the same output folder and working folder), and makes the
     others (a fix's generated clip gets its file name only when the outputs are written)."""
@@ -247,9 +247,9 @@ def _axis_docs(space: BlendSpace) -> list[AxisDoc]:
 
 
 def to_document(
-    space: BlendSpace, out_dir: Path, prepared: PreparedSamples | None = None
+    space: BlendSpace, out_dir: Path, prepared: SampleDocsAhead | None = None
 ) -> BlendSpaceDocument:
-    """``prepared``: sample documents made ahead (`PreparedSamples`)."""
+    """``prepared``: sample documents made ahead (`SampleDocsAhead`)."""
     model = space.manifest.model
     return BlendSpaceDocument(
         schema_version=1,
