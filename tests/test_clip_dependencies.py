@@ -148,3 +148,55 @@ def test_a_reference_that_is_a_symlink_loop_is_bad_input_not_a_crash(
     assert main(["check", str(tmp_path / "manifest.yaml")]) == 2
     err = capsys.readouterr().err
     assert "walk." in err and "Traceback" not in err and "internal error" not in err.lower()
+
+
+def test_a_cached_clips_dependencies_are_not_listed_by_parsing_it_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A clip the cache holds (another manifest over the same takes: the pack misses) was opened
+    layer by layer only to list its dependencies. The list is remembered by the clip's content
+    and holds while every listed file reads the same: a layer that names one more is walked again."""
+    from blendspace_pipeline.pipeline import cache
+    from blendspace_pipeline.readers import usd
+
+    (tmp_path / "clips").mkdir()
+    for spec in OTHERS:
+        write_usd_clip(
+            generate(spec), tmp_path / "clips" / f"{spec.name}.usda", meters_per_unit=1.0, up_axis="y"
+        )
+    layer = _usd_with_a_layer(tmp_path, 1.4)
+    walks: list[Path] = []
+    composed = usd.composed_layers
+
+    def counted(path: Path, *args, **kwargs):  # type: ignore[no-untyped-def]
+        walks.append(path)
+        return composed(path, *args, **kwargs)
+
+    monkeypatch.setattr(usd, "composed_layers", counted)
+    for name in ("a", "b"):  # two manifests over the same clips: two packs, one per-clip cache
+        (tmp_path / f"{name}.yaml").write_text(
+            f"schema_version: 1\nname: {name}\nclips:\n  - path: clips/*\n", encoding="utf-8"
+        )
+        assert main(["check", str(tmp_path / f"{name}.yaml"), "--jobs", "1"]) in (0, 1)
+    assert len(walks) == 4  # the four clips of the first manifest, none of the second's
+    clip = tmp_path / "clips" / "walk.usda"
+    digest = cache.content_digest(clip)
+
+    def listed() -> list[str]:
+        return [
+            p
+            for p, _, _ in cache.known_dependencies(
+                clip, digest, tmp_path, lambda: file_dependencies(clip, tmp_path)
+            )
+        ]
+
+    assert listed() == [str(layer)] and len(walks) == 4
+    more = tmp_path / "anim" / "more.usda"
+    more.write_text("#usda 1.0\n", encoding="utf-8")
+    text = layer.read_text(encoding="utf-8")
+    layer.write_text(
+        text.replace("#usda 1.0\n(\n", "#usda 1.0\n(\n    subLayers = [@more.usda@]\n", 1), encoding="utf-8"
+    )
+    assert "subLayers = [@more.usda@]" in layer.read_text(encoding="utf-8")
+    assert listed() == sorted([str(layer), str(more)]) and len(walks) == 5
+    capsys.readouterr()

@@ -13,6 +13,7 @@ import os
 import stat
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import fields, is_dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -94,6 +95,33 @@ def dependency_state(paths: list[Path]) -> list[list[str]]:
             state.append([str(path), stat_key(path, info), "not read"])
             continue
         state.append([str(path), stat_key(path, info), content_digest(path)])
+    return state
+
+
+def known_dependencies(
+    path: Path, digest: str, project: Path | None, find: Callable[[], list[Path]]
+) -> list[list[str]]:
+    """The `dependency_state` of a clip file's dependencies (``find`` lists them:
+    `readers.dependencies.file_dependencies`), the list remembered by the file's content, path and
+    project: a clip whose measurements the cache holds is not parsed again only to list them (a
+    USD clip's walk opens every layer, a glTF is read whole). The list holds while every file on
+    it reads the same: a listed layer that names one more file has another digest."""
+    folder = cache_dir()
+    entry = None
+    if folder is not None:
+        where = f"{digest}|{os.path.abspath(path)}|{project and os.path.abspath(project)}|{__version__}|{MEASUREMENT_REVISION}"
+        entry = folder / "dependencies" / f"{hashlib.sha256(where.encode()).hexdigest()}.json"
+        try:
+            known = loads(entry.read_bytes())
+            state = dependency_state([Path(p) for p in known["paths"]])
+            if state == known["state"]:
+                return state
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    paths = find()
+    state = dependency_state(paths)
+    if entry is not None:
+        write_atomic(entry, dumps({"paths": [str(p) for p in paths], "state": state}))
     return state
 
 

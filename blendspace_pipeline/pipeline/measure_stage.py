@@ -25,7 +25,7 @@ from blendspace_pipeline.pipeline import cache
 from blendspace_pipeline.pipeline.forked import explained_worker_loss, guided_chunks
 from blendspace_pipeline.pipeline.progress import Progress
 from blendspace_pipeline.readers import adapter_for, read_clips
-from blendspace_pipeline.readers.dependencies import file_dependencies
+from blendspace_pipeline.readers.dependencies import file_dependencies, may_have_dependencies
 from blendspace_pipeline.readers.limits import check_regular
 from blendspace_pipeline.readers.provenance import read_provenance
 from blendspace_pipeline.space.model import MeasuredClip
@@ -103,7 +103,11 @@ def _measure_keyed(job: Job) -> tuple[str, str, Measured, list[list[str]]]:
     check_regular(path, what="clip file")  # hashing a FIFO for the cache key would hang
     digest = cache.content_digest(path)
     opened: list[object] = []  # held until the clip is read: its USD layers are parsed once
-    dependencies = cache.dependency_state(file_dependencies(path, project, opened))
+    dependencies = (
+        cache.known_dependencies(path, digest, project, lambda: file_dependencies(path, project, opened))
+        if may_have_dependencies(path)
+        else []
+    )
     key = cache.cache_key(
         path, cache.dependency_settings(settings.cache_key(), dependencies), time_range, digest
     )

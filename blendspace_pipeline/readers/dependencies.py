@@ -14,6 +14,14 @@ from pathlib import Path
 USD_SUFFIXES = frozenset({".usd", ".usda", ".usdc"})  # a .usdz packs its layers in its own bytes
 
 
+def may_have_dependencies(path: Path) -> bool:
+    """Whether files of ``path``'s format can be read with others (USD layers, glTF buffers)."""
+    return path.suffix.lower() in _GLTF_SUFFIXES or path.suffix.lower() in USD_SUFFIXES
+
+
+_GLTF_SUFFIXES = frozenset({".gltf", ".glb"})
+
+
 def file_dependencies(
     path: Path, project: Path | None = None, keep: list[object] | None = None
 ) -> list[Path]:
@@ -24,7 +32,7 @@ def file_dependencies(
     ``keep``: receives what was opened to find them (USD layers), for the caller to hold while it
     reads the clip."""
     suffix = path.suffix.lower()
-    if suffix in (".gltf", ".glb"):  # a GLB's buffers may name files too (the reader follows them)
+    if suffix in _GLTF_SUFFIXES:  # a GLB's buffers may name files too (the reader follows them)
         from blendspace_pipeline.readers.gltf import buffer_files
 
         found = buffer_files(path, project)
